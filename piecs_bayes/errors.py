@@ -1,0 +1,53 @@
+"""Errors a user sees. Each names the offending thing: file, line, column, feature, value."""
+
+from __future__ import annotations
+
+__all__ = ["PiecsError", "InputError", "AnalysisError"]
+
+
+class PiecsError(Exception):
+    """Base class of every error piecs_bayes raises on purpose."""
+
+
+class InputError(PiecsError, ValueError):
+    """Bad input: a file, a cell, a setting. The CLI exits with code 2.
+
+    **Arguments:**
+
+    - `message`: what is wrong and what was expected.
+    - `file`, `line`, `column`, `feature`, `value`: where, when known. They are
+      kept as attributes and prefixed to the message as ``file:line: column 'c':``.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        file: str | None = None,
+        line: int | None = None,
+        column: str | None = None,
+        feature: str | None = None,
+        value: object = None,
+    ):
+        self.file = file
+        self.line = line
+        self.column = column
+        self.feature = feature
+        self.value = value
+        self.reason = message
+        where = []
+        if file is not None:
+            where.append(f"{file}:{line}" if line is not None else str(file))
+        elif line is not None:
+            where.append(f"line {line}")
+        if column is not None:
+            where.append(f"column {column!r}")
+        if feature is not None:
+            where.append(f"feature {feature!r}")
+        prefix = ", ".join(where)
+        super().__init__(f"{prefix}: {message}" if prefix else message)
+
+
+class AnalysisError(PiecsError, RuntimeError):
+    """The analysis could not give a trustworthy answer (no convergence, gouge,
+    a correction above the limit...). The CLI exits with code 1."""

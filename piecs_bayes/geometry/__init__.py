@@ -1,0 +1,18 @@
+"""Geometry of turned profiles: pure, differentiable JAX functions; no files, no fits."""
+
+from ._curves import Arc as Arc
+from ._curves import Feature as Feature
+from ._curves import Line as Line
+from ._curves import left_normal as left_normal
+from ._curves import rotate as rotate
+from ._intersect import intersect_circle_circle as intersect_circle_circle
+from ._intersect import intersect_line_circle as intersect_line_circle
+from ._intersect import intersect_line_line as intersect_line_line
+from ._profile import Profile as Profile
+from ._profile import ProfileError as ProfileError
+from ._profile import make_feature as make_feature
+from ._profile import profile_side as profile_side
+from ._transform import MachineTransform as MachineTransform
+from ._transform import ball_correction as ball_correction
+from ._transform import machine_to_part as machine_to_part
+from ._transform import part_to_machine as part_to_machine

@@ -1,0 +1,72 @@
+"""Machine-to-part transform and stylus ball correction.
+
+Machine coordinates are the probe's ball-centre positions as the machine reports
+them (radius X, after any diameter-mode halving at the file boundary). The part
+frame is the drawing's. The transform, with its parameters all small except the
+offsets::
+
+    u = (x_m - x_centre, z_m - z_offset)          # centre-line and work offset
+    s = ((1 + scale_x) u_x, (1 + scale_z) u_z)    # axis scale errors
+    p = rotate(s, rotation)                        # small squareness / rotation
+
+and its exact inverse. Scale errors and rotation are also uncertainty sources.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+
+from ._curves import rotate
+
+__all__ = ["MachineTransform", "machine_to_part", "part_to_machine", "ball_correction"]
+
+
+@dataclass(frozen=True)
+class MachineTransform:
+    """Parameters of the machine -> part transform (mm, and dimensionless / rad)."""
+
+    x_centre: float = 0.0
+    z_offset: float = 0.0
+    scale_x: float = 0.0
+    scale_z: float = 0.0
+    rotation: float = 0.0
+
+    def as_array(self):
+        return jnp.array(
+            [self.x_centre, self.z_offset, self.scale_x, self.scale_z, self.rotation]
+        )
+
+
+def machine_to_part(points, params):
+    """Map machine ``(x, z)`` points to the part frame.
+
+    ``params`` is a :class:`MachineTransform` or its 5-vector
+    ``(x_centre, z_offset, scale_x, scale_z, rotation)`` (differentiable).
+    """
+    t = params.as_array() if isinstance(params, MachineTransform) else jnp.asarray(params)
+    pts = jnp.asarray(points)
+    u = pts - jnp.stack([t[0], t[1]])
+    s = u * jnp.stack([1.0 + t[2], 1.0 + t[3]])
+    return rotate(s, t[4])
+
+
+def part_to_machine(points, params):
+    """Exact inverse of :func:`machine_to_part`."""
+    t = params.as_array() if isinstance(params, MachineTransform) else jnp.asarray(params)
+    s = rotate(jnp.asarray(points), -t[4])
+    u = s / jnp.stack([1.0 + t[2], 1.0 + t[3]])
+    return u + jnp.stack([t[0], t[1]])
+
+
+def ball_correction(centres, feature, radius, dev=None):
+    """Surface contact points of a ball of ``radius`` whose centres touched ``feature``.
+
+    The ball touches from outside the material, so the contact point lies one
+    ball radius back from the centre along the feature's outward normal at the
+    nearest point (of the deviated feature when ``dev`` is given).
+    """
+    centres = jnp.asarray(centres)
+    n = feature.outward_normal(centres, dev)
+    return centres - radius * n
