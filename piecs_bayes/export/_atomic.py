@@ -1,0 +1,51 @@
+"""Atomic output: write to a temporary file beside the target, then rename.
+
+A crash never leaves a half-written output, and an input is never overwritten
+by accident: pass ``protect=`` the input paths and a clash is refused.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..errors import InputError
+
+__all__ = ["write_text_atomic", "write_bytes_atomic"]
+
+
+def _check(path: Path, protect: Iterable[str | os.PathLike] | None) -> None:
+    for p in protect or ():
+        p = Path(p)
+        if p.exists() and path.exists() and os.path.samefile(p, path):
+            raise InputError(
+                "refusing to overwrite an input file; choose another output path", file=str(path)
+            )
+
+
+def write_bytes_atomic(path, data: bytes, *, protect=None) -> Path:
+    """Write ``data`` to ``path`` atomically (parents created). Returns the path."""
+    path = Path(path)
+    _check(path, protect)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def write_text_atomic(path, text: str, *, protect=None, newline: str = "\n") -> Path:
+    """Write ``text`` (UTF-8) atomically; ``newline`` replaces ``"\\n"``."""
+    if newline != "\n":
+        text = text.replace("\n", newline)
+    return write_bytes_atomic(path, text.encode("utf-8"), protect=protect)
