@@ -34,9 +34,7 @@ class MachineTransform:
     rotation: float = 0.0
 
     def as_array(self):
-        return jnp.array(
-            [self.x_centre, self.z_offset, self.scale_x, self.scale_z, self.rotation]
-        )
+        return jnp.array([self.x_centre, self.z_offset, self.scale_x, self.scale_z, self.rotation])
 
 
 def machine_to_part(points, params):

@@ -1,0 +1,247 @@
+"""``piecs-bayes``: one command per user job; a thin layer over the public API.
+
+Exit codes: 0 ok, 1 the analysis failed (no convergence, a gouge, a correction
+above the limit), 2 bad input (a file, a cell, a setting) or usage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+from .errors import AnalysisError, InputError
+
+__all__ = ["main", "build_parser"]
+
+EXAMPLES = {
+    "fit": "piecs-bayes fit data/demo/study.toml --out reports/fit --method robust",
+    "compensate": "piecs-bayes compensate data/demo/study.toml --out reports/comp",
+    "simulate": "piecs-bayes simulate demo --out data/demo --seed 20261123",
+    "demo": "piecs-bayes demo data/demo/study.toml --out reports/demo",
+}
+
+
+class _Console:
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+        self.t0 = time.perf_counter()
+
+    def say(self, msg: str) -> None:
+        if not self.quiet:
+            print(msg, flush=True)
+
+    def step(self, msg: str) -> None:
+        if not self.quiet:
+            print(f"[{time.perf_counter() - self.t0:6.1f} s] {msg}", flush=True)
+
+
+def _add_common(p: argparse.ArgumentParser, *, out: bool = True) -> None:
+    if out:
+        p.add_argument(
+            "--out", type=Path, default=None, help="output folder (default: reports/<study name>)"
+        )
+    p.add_argument("--seed", type=int, default=0, help="random seed for anything stochastic")
+    p.add_argument("--quiet", "-q", action="store_true", help="print only errors")
+
+
+def _sub(sub, name: str, help_: str) -> argparse.ArgumentParser:
+    return sub.add_parser(
+        name,
+        help=help_,
+        description=help_,
+        epilog=f"example:\n  {EXAMPLES[name]}" if name in EXAMPLES else None,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="piecs-bayes",
+        description="Uncertainty-aware process-intermittent error compensation for turning.",
+        epilog="Exit codes: 0 ok, 1 analysis failed, 2 bad input. See docs/formats.md for the files.",
+    )
+    parser.add_argument("--version", action="version", version=f"piecs-bayes {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    p = _sub(sub, "fit", "Fit each feature's deviation from the probe points; write JSON and CSV.")
+    p.add_argument("study", type=Path, help="study file (TOML)")
+    p.add_argument(
+        "--method", choices=("lsq", "robust"), default=None, help="default: the study's fit.method"
+    )
+    p.add_argument("--part", default=None, help="part id when the probe data holds several parts")
+    _add_common(p)
+    p.set_defaults(func=cmd_fit)
+
+    p = _sub(
+        sub, "compensate", "Fit, mirror the deviations and write the adjusted tool-path vertices."
+    )
+    p.add_argument("study", type=Path, help="study file (TOML)")
+    p.add_argument("--method", choices=("lsq", "robust"), default=None)
+    p.add_argument("--part", default=None)
+    p.add_argument(
+        "--gain", type=float, default=None, help="feedback gain in [0, 1] (default: the study's)"
+    )
+    _add_common(p)
+    p.set_defaults(func=cmd_compensate)
+
+    p = _sub(sub, "simulate", "Write simulated data sets with known truth (demo part, batch run).")
+    p.add_argument("which", choices=("demo", "batch"), help="which data set")
+    p.add_argument("--parts", type=int, default=36, help="batch: number of parts")
+    _add_common(p)
+    p.set_defaults(func=cmd_simulate)
+
+    p = _sub(sub, "demo", "Run the main job on a study end to end and list what it wrote.")
+    p.add_argument("study", type=Path, help="study file (TOML)")
+    _add_common(p)
+    p.set_defaults(func=cmd_demo)
+
+    for module in _plugins():
+        module.register(sub)
+    return parser
+
+
+def _plugins():
+    """Command groups that live in their own modules (``register(subparsers)``)."""
+    import importlib
+
+    for name in ("_cli_gcode",):
+        try:
+            yield importlib.import_module(f".{name}", __package__)
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__package__}.{name}":
+                raise
+
+
+def _out_dir(args, study) -> Path:
+    if args.out is not None:
+        return args.out
+    return Path("reports") / study.path.stem
+
+
+def _write(out: Path, name: str, text: str, study, console: _Console, written: list) -> Path:
+    from .export import write_text_atomic
+
+    inputs = [study.path, *study.probe_files] + ([study.program] if study.program else [])
+    path = write_text_atomic(out / name, text, protect=inputs)
+    written.append(path)
+    return path
+
+
+def _fit(args, console):
+    from .pipeline import fit_study, load_study
+
+    study = load_study(args.study)
+    console.step(f"read {study!r}")
+    fit = fit_study(study, method=args.method, part=args.part)
+    console.step(f"fitted {len(fit.fits)} features ({fit.method})")
+    return study, fit
+
+
+def _write_fit(out, study, fit, console, written):
+    from .export import fit_csv, fit_json, residuals_csv
+
+    _write(out, "fit.json", fit_json(fit, study=study), study, console, written)
+    _write(out, "fit.csv", fit_csv(fit), study, console, written)
+    _write(out, "residuals.csv", residuals_csv(fit), study, console, written)
+
+
+def _print_fit(fit, console):
+    console.say(
+        f"{'feature':<12}{'parameter':<11}{'value':>14}{'std.unc.':>12}  outliers (file lines)"
+    )
+    for f in fit:
+        lines = ", ".join(str(int(f.lines[i])) for i in f.outliers) or "-"
+        se = f.std_errors if f.std_errors is not None else [float("nan")] * len(f.values)
+        for k, (name, v, s) in enumerate(zip(f.param_names, f.values, se, strict=True)):
+            unit = "rad" if name == "rotation" else "mm"
+            console.say(
+                f"{f.id if k == 0 else '':<12}{name:<11}{v:>+12.6f} {unit:<4}{s:>9.6f}  "
+                + (lines if k == 0 else "")
+            )
+    if fit.unmeasured:
+        console.say(f"not measured (left as drawn): {', '.join(fit.unmeasured)}")
+
+
+def cmd_fit(args, console) -> int:
+    study, fit = _fit(args, console)
+    out = _out_dir(args, study)
+    written: list[Path] = []
+    _write_fit(out, study, fit, console, written)
+    _print_fit(fit, console)
+    for p in written:
+        console.say(f"wrote {p}")
+    return 0
+
+
+def cmd_compensate(args, console) -> int:
+    from .export import path_csv
+    from .pipeline import compensate_study
+
+    study, fit = _fit(args, console)
+    path = compensate_study(study, fit, gain=args.gain)
+    console.step(f"adjusted tool path: {path!r}")
+    out = _out_dir(args, study)
+    written: list[Path] = []
+    _write_fit(out, study, fit, console, written)
+    _write(out, "toolpath.csv", path_csv(path), study, console, written)
+    for p in written:
+        console.say(f"wrote {p}")
+    return 0
+
+
+def cmd_simulate(args, console) -> int:
+    from . import simulate
+
+    out = args.out or Path("data") / args.which
+    if args.which == "demo":
+        simulate.write_demo(out, seed=args.seed or 20261123)
+    else:
+        simulate.write_batch(out, n_parts=args.parts, seed=args.seed or 7)
+    console.say(f"wrote simulated {args.which} data to {out}")
+    return 0
+
+
+def cmd_demo(args, console) -> int:
+    from .export import path_csv
+    from .pipeline import compensate_study
+
+    console.say(f"piecs-bayes demo on {args.study}")
+    study, fit = _fit(
+        args := argparse.Namespace(**{**vars(args), "method": "robust", "part": None}), console
+    )
+    _print_fit(fit, console)
+    path = compensate_study(study, fit)
+    console.step(f"adjusted tool path: {path!r}")
+    out = _out_dir(args, study)
+    written: list[Path] = []
+    _write_fit(out, study, fit, console, written)
+    _write(out, "toolpath.csv", path_csv(path), study, console, written)
+    console.say("\nOutputs:")
+    for p in written:
+        console.say(f"  {p}")
+    return 0
+
+
+def main(argv=None) -> int:
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    console = _Console(getattr(args, "quiet", False))
+    try:
+        return int(args.func(args, console) or 0)
+    except InputError as exc:
+        print(f"piecs-bayes: error: {exc}", file=sys.stderr)
+        return 2
+    except AnalysisError as exc:
+        print(f"piecs-bayes: analysis failed: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,262 @@
+"""Feature models of a turned profile, fitted through :func:`least_squares`.
+
+The model of a probe trigger is exact for a ball probe: the ball centre lies
+on the feature offset outward by the ball radius, so the residual of a trigger
+is its signed distance to the deviated feature minus the ball radius
+(positive = outside the material). Parameters are deviations from nominal:
+
+- line: ``offset`` (mm, along the outward normal), ``rotation`` (rad, CCW in
+  the drawing frame, about the nominal mid-point);
+- arc: ``center_x``, ``center_z`` (mm), ``radius`` (mm); ``fix=("radius",)``
+  gives the fixed-radius arc.
+
+The joint profile fit (:func:`fit_profile_joint`) shares the machine-to-part
+transform parameters (centre-line offset, Z shift, X and Z scale errors) over
+all features; any of them, and any feature parameter, can be fixed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import InputError
+import functools
+
+from ..geometry import Feature, machine_to_part, rotate
+from ._least_squares import LsqResult, least_squares
+
+__all__ = ["FeatureFit", "fit_feature", "feature_residuals"]
+
+
+def _geometry_args(feature: Feature):
+    """Nominal geometry of a feature as arrays (data, not static structure), so one
+    compiled model serves every feature of a kind."""
+    if feature.kind == "line":
+        return (feature.midpoint, feature.normal, jnp.asarray(0.0), jnp.asarray(1.0))
+    return (
+        jnp.asarray(feature.center),
+        jnp.zeros(2),
+        jnp.asarray(feature.radius),
+        jnp.asarray(float(feature.sense)),
+    )
+
+
+def _line_distance(points, geom, dev):
+    mid, normal, _, _ = geom
+    return (points - mid - dev[0] * normal) @ rotate(normal, dev[1])
+
+
+def _arc_distance(points, geom, dev):
+    centre, _, radius, sense = geom
+    v = points - centre - dev[:2]
+    return sense * (jnp.sqrt(jnp.sum(v * v, axis=-1)) - (radius + dev[2]))
+
+
+@functools.lru_cache(maxsize=None)
+def feature_residuals(kind: str, free: tuple[int, ...]):
+    """Residual function ``fn(y, args)`` of a feature kind (``"line"``/``"arc"``).
+
+    ``y`` holds the free parameters (indices ``free`` into the kind's parameter
+    vector; the others stay zero); ``args = (points, geometry, ball_radius)``
+    with ``points`` ``(n, 2)`` ball centres in the part frame and ``geometry``
+    from the nominal feature. The function object is cached, so every fit of a
+    kind with the same point count reuses one compiled solve.
+    """
+    nparams = 2 if kind == "line" else 3
+    distance = _line_distance if kind == "line" else _arc_distance
+    idx = jnp.array(free, dtype=int)
+
+    def fn(y, args):
+        points, geom, ball_radius = args
+        dev = jnp.zeros(nparams).at[idx].set(y)
+        return distance(points, geom, dev) - ball_radius
+
+    fn.__name__ = f"{kind}_residuals"
+    return fn
+
+
+def padded_size(n: int) -> int:
+    """Point-count bucket: the next power of two, at least 8 (fewer compilations)."""
+    return max(8, 1 << (int(n) - 1).bit_length())
+
+
+@dataclass(frozen=True, eq=False)
+class FeatureFit:
+    """Fitted deviation of one feature, its uncertainty and its diagnostics.
+
+    ``values``/``std_errors``/``covariance`` are over all the feature's
+    parameters (fixed ones have value 0 and zero variance). ``lines`` are the
+    probe-file lines of the points; ``outliers`` indices into them.
+    ``error_vectors`` are measured surface points minus their nominal points
+    (part frame, mm).
+    """
+
+    feature: Feature
+    values: np.ndarray
+    std_errors: np.ndarray | None
+    covariance: np.ndarray | None
+    points: np.ndarray
+    residuals: np.ndarray
+    weights: np.ndarray
+    outliers: np.ndarray
+    lines: np.ndarray
+    nominal_points: np.ndarray
+    error_vectors: np.ndarray
+    method: str
+    result: LsqResult = field(repr=False)
+    fixed: tuple[str, ...] = ()
+
+    @property
+    def id(self) -> str:
+        return self.feature.id
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return self.feature.param_names
+
+    @property
+    def n(self) -> int:
+        return len(self.points)
+
+    @property
+    def residual_sd(self) -> float:
+        return float(self.result.residual_sd)
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.result.converged)
+
+    def as_dict(self) -> dict:
+        se = self.std_errors if self.std_errors is not None else [None] * len(self.values)
+        return {
+            "feature": self.id,
+            "type": self.feature.kind,
+            "method": self.method,
+            "n_points": self.n,
+            "parameters": {
+                name: {"value": float(v), "std_error": None if s is None else float(s)}
+                for name, v, s in zip(self.param_names, self.values, se, strict=True)
+            },
+            "fixed": list(self.fixed),
+            "residual_sd": self.residual_sd,
+            "outlier_lines": [int(self.lines[i]) for i in self.outliers],
+            "covariance": None if self.covariance is None else np.asarray(self.covariance).tolist(),
+            "status": self.result.status.name,
+        }
+
+    def __repr__(self) -> str:
+        body = ", ".join(
+            f"{n}={v * (1 if n != 'rotation' else 1):+.6g}"
+            + ("" if self.std_errors is None else f"±{s:.2g}")
+            for n, v, s in zip(
+                self.param_names,
+                self.values,
+                self.std_errors if self.std_errors is not None else self.values * 0,
+                strict=True,
+            )
+        )
+        return f"FeatureFit({self.id!r}, {self.method}, n={self.n}, {body}, outliers={len(self.outliers)})"
+
+
+def fit_feature(
+    feature: Feature,
+    centres,
+    *,
+    ball_radius: float,
+    method: str = "lsq",
+    loss: str = "huber",
+    scale: float | None = None,
+    sigma: float | None = None,
+    fix: Sequence[str] = (),
+    lines=None,
+    throw: bool = True,
+) -> FeatureFit:
+    """Fit one feature's deviation to ball-centre points in the part frame.
+
+    **Arguments:**
+
+    - `feature`: a nominal Line or Arc.
+    - `centres`: ``(n, 2)`` ball centres, part frame, mm, radius X.
+    - `ball_radius`: stylus ball radius (mm).
+    - `method`: ``"lsq"`` (plain) or ``"robust"`` (uses `loss`, `scale`).
+    - `sigma`: known probe repeatability; scales the covariance instead of the
+      residual variance.
+    - `fix`: parameter names held at zero (``("radius",)`` for a fixed-radius arc).
+    - `lines`: file line per point, kept for reports.
+
+    **Returns:** a :class:`FeatureFit`.
+    """
+    if method not in ("lsq", "robust"):
+        raise ValueError(f"unknown method {method!r}; expected 'lsq' or 'robust'")
+    for name in fix:
+        if name not in feature.param_names:
+            raise InputError(
+                f"cannot fix {name!r}: parameters are {', '.join(feature.param_names)}",
+                feature=feature.id,
+                value=name,
+            )
+    free = [i for i, n in enumerate(feature.param_names) if n not in fix]
+    centres = np.asarray(centres, dtype=float)
+    n = len(centres)
+    if n <= len(free):
+        raise InputError(
+            f"{n} points are too few to fit {len(free)} parameters with an uncertainty "
+            f"(need at least {len(free) + 1})",
+            feature=feature.id,
+            value=n,
+        )
+    fn = feature_residuals(feature.kind, tuple(free))
+    n_pad = padded_size(n)
+    padded = np.vstack([centres, np.repeat(centres[:1], n_pad - n, axis=0)])
+    weights = np.r_[np.ones(n), np.zeros(n_pad - n)]
+    res = least_squares(
+        fn,
+        jnp.zeros(len(free)),
+        (jnp.asarray(padded), _geometry_args(feature), jnp.asarray(float(ball_radius))),
+        weights=weights,
+        loss="linear" if method == "lsq" else loss,
+        scale=scale,
+        sigma=sigma,
+        throw=throw,
+    )
+    values = np.zeros(feature.nparams)
+    values[free] = np.asarray(res.params)
+    cov = None
+    if res.covariance is not None:
+        cov = np.zeros((feature.nparams, feature.nparams))
+        cov[np.ix_(free, free)] = np.asarray(res.covariance)
+    se = None if cov is None else np.sqrt(np.diag(cov))
+    # Error vectors: measured surface point (ball-corrected with the fitted
+    # normal) minus its nearest nominal point.
+    surface = np.asarray(
+        jnp.asarray(centres)
+        - ball_radius * feature.outward_normal(jnp.asarray(centres), jnp.asarray(values))
+    )
+    nominal = np.asarray(feature.closest_point(jnp.asarray(surface)))
+    weights = np.asarray(res.weights)[:n]
+    outliers = np.asarray(res.outliers, dtype=int)
+    return FeatureFit(
+        feature=feature,
+        values=values,
+        std_errors=se,
+        covariance=cov,
+        points=centres,
+        residuals=np.asarray(res.residuals)[:n],
+        weights=weights,
+        outliers=outliers,
+        lines=np.arange(1, n + 1) if lines is None else np.asarray(lines),
+        nominal_points=nominal,
+        error_vectors=surface - nominal,
+        method=method if method == "lsq" else f"robust/{loss}",
+        result=res,
+        fixed=tuple(fix),
+    )
+
+
+def to_part_frame(study_transform, machine_points):
+    """Ball centres in the part frame from machine coordinates (radius X)."""
+    return np.asarray(machine_to_part(jnp.asarray(machine_points), study_transform))

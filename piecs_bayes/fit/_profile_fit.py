@@ -1,0 +1,148 @@
+"""Fit every feature of a profile from one part's probe points."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import Profile
+from ._features import FeatureFit, fit_feature
+
+__all__ = ["ProfileFit", "fit_profile"]
+
+
+@dataclass(frozen=True, eq=False)
+class ProfileFit:
+    """Per-feature fits of one part. ``unmeasured`` lists features without points."""
+
+    profile: Profile
+    fits: dict
+    method: str
+    unmeasured: tuple[str, ...] = ()
+    part: str | None = None
+
+    def __getitem__(self, feature_id: str) -> FeatureFit:
+        try:
+            return self.fits[feature_id]
+        except KeyError:
+            raise KeyError(
+                f"no fit for feature {feature_id!r}; fitted: {', '.join(self.fits)}"
+            ) from None
+
+    def __iter__(self):
+        return iter(self.fits.values())
+
+    @property
+    def deviations(self) -> dict[str, np.ndarray]:
+        return {fid: f.values for fid, f in self.fits.items()}
+
+    @property
+    def covariances(self) -> dict[str, np.ndarray | None]:
+        return {fid: f.covariance for fid, f in self.fits.items()}
+
+    def rows(self) -> list[dict]:
+        """One row per fitted parameter (for CSV / DataFrames)."""
+        out = []
+        for f in self.fits.values():
+            se = f.std_errors if f.std_errors is not None else [float("nan")] * len(f.values)
+            for name, v, s in zip(f.param_names, f.values, se, strict=True):
+                out.append(
+                    {
+                        "part": self.part or "",
+                        "feature": f.id,
+                        "type": f.feature.kind,
+                        "parameter": name,
+                        "value": float(v),
+                        "std_error": float(s),
+                        "n_points": f.n,
+                        "residual_sd": f.residual_sd,
+                        "n_outliers": len(f.outliers),
+                        "method": f.method,
+                    }
+                )
+        return out
+
+    def __repr__(self) -> str:
+        lines = [f"ProfileFit({self.method}, part={self.part!r})"]
+        for f in self.fits.values():
+            lines.append(f"  {f!r}")
+        if self.unmeasured:
+            lines.append(f"  not measured: {', '.join(self.unmeasured)}")
+        return "\n".join(lines)
+
+
+def fit_profile(
+    profile: Profile,
+    feature_ids,
+    centres,
+    *,
+    ball_radius: float,
+    method: str = "lsq",
+    loss: str = "huber",
+    scale: float | None = None,
+    sigma: float | None = None,
+    fix: dict | None = None,
+    lines=None,
+    min_points: dict | None = None,
+    file: str | None = None,
+    part: str | None = None,
+) -> ProfileFit:
+    """Fit each feature of ``profile`` to its points.
+
+    **Arguments:**
+
+    - `feature_ids`: ``(n,)`` feature id of each point.
+    - `centres`: ``(n, 2)`` ball centres in the part frame (mm, radius X).
+    - `fix`: ``{feature_id: (param, ...)}`` parameters held at nominal.
+    - `min_points`: ``{"line": 3, "arc": 4}``; fewer (but some) points is an error.
+    - `file`, `lines`: where the points came from, for messages and reports.
+
+    **Returns:** a :class:`ProfileFit`; features with no points are listed as
+    unmeasured (they are left as drawn by compensation).
+    """
+    feature_ids = np.asarray(feature_ids).astype(str)
+    centres = np.asarray(centres, dtype=float)
+    lines = np.arange(1, len(centres) + 1) if lines is None else np.asarray(lines)
+    min_points = {"line": 3, "arc": 4, **(min_points or {})}
+    fix = fix or {}
+    for fid in np.unique(feature_ids):
+        if fid not in profile.ids:
+            first = int(lines[np.flatnonzero(feature_ids == fid)[0]])
+            raise InputError(
+                f"unknown feature id {fid!r}; the profile has {', '.join(profile.ids)}",
+                file=file,
+                line=first,
+                column="feature",
+                feature=fid,
+            )
+    fits, unmeasured = {}, []
+    for f in profile.features:
+        m = feature_ids == f.id
+        k = int(m.sum())
+        if k == 0:
+            unmeasured.append(f.id)
+            continue
+        need = min_points[f.kind]
+        if k < need:
+            raise InputError(
+                f"{k} point(s) are too few for a {f.kind}: at least {need} are needed",
+                file=file,
+                feature=f.id,
+                value=k,
+            )
+        fits[f.id] = fit_feature(
+            f,
+            centres[m],
+            ball_radius=ball_radius,
+            method=method,
+            loss=loss,
+            scale=scale,
+            sigma=sigma,
+            fix=tuple(fix.get(f.id, ())),
+            lines=lines[m],
+        )
+    if not fits:
+        raise InputError("no probe point belongs to any profile feature", file=file)
+    return ProfileFit(profile, fits, method, tuple(unmeasured), part)

@@ -1,0 +1,224 @@
+"""Probe CSV files: one row per trigger, ball-centre machine coordinates.
+
+Required columns ``feature,x,z``; optional ``part``, ``approach_x``,
+``approach_z``, ``time``, ``temperature``. A header row is required; lines
+starting with ``#`` (and blank lines) are comments. X is a diameter or a radius
+as the study's ``[probe] x_mode`` says; lengths are in the study's units and
+are converted to millimetres and radius here, at the boundary.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["ProbeData", "read_probe_csv", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS"]
+
+REQUIRED_COLUMNS = ("feature", "x", "z")
+OPTIONAL_COLUMNS = ("part", "approach_x", "approach_z", "time", "temperature")
+_NUMERIC = ("x", "z", "approach_x", "approach_z", "time", "temperature")
+_MM_PER = {"mm": 1.0, "in": 25.4}
+
+
+@dataclass(frozen=True, eq=False)
+class ProbeData:
+    """Probe triggers of one file, in millimetres, X as radius, machine frame.
+
+    ``points`` is ``(n, 2)`` ``(x, z)`` ball centres; ``lines`` the 1-based file
+    line of each row (for messages); ``approach`` ``(n, 2)`` or None.
+    """
+
+    file: str
+    feature: np.ndarray
+    points: np.ndarray
+    lines: np.ndarray
+    part: np.ndarray
+    approach: np.ndarray | None = None
+    time: np.ndarray | None = None
+    temperature: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.feature)
+
+    @property
+    def parts(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(self.part.tolist()))
+
+    def select(self, mask) -> ProbeData:
+        """The rows where ``mask`` is true (a new ProbeData)."""
+        m = np.asarray(mask)
+
+        def sub(a):
+            return None if a is None else a[m]
+
+        return ProbeData(
+            self.file,
+            self.feature[m],
+            self.points[m],
+            self.lines[m],
+            self.part[m],
+            sub(self.approach),
+            sub(self.time),
+            sub(self.temperature),
+        )
+
+    def for_part(self, part: str) -> ProbeData:
+        return self.select(self.part == part)
+
+    def __repr__(self) -> str:
+        feats = dict(zip(*np.unique(self.feature, return_counts=True), strict=True))
+        body = ", ".join(f"{k}: {v}" for k, v in feats.items())
+        return f"ProbeData({self.file!r}, {len(self)} points, parts={len(self.parts)}, {{{body}}})"
+
+
+def _lines_without_comments(path: Path):
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        for lineno, raw in enumerate(fh, start=1):
+            stripped = raw.strip()
+            if not stripped or stripped.startswith("#"):
+                continue
+            yield lineno, raw
+
+
+def read_probe_csv(
+    path,
+    *,
+    units: str = "mm",
+    x_mode: str = "diameter",
+    features: tuple[str, ...] | None = None,
+    default_part: str | None = None,
+) -> ProbeData:
+    """Read and validate a probe CSV file.
+
+    **Arguments:**
+
+    - `path`: the file.
+    - `units`: ``"mm"`` or ``"in"`` (lengths in the file).
+    - `x_mode`: ``"diameter"`` or ``"radius"``: how X is written in the file.
+    - `features`: the study's feature ids; any other id is an error.
+    - `default_part`: part id for rows without a ``part`` column (default: file stem).
+
+    **Returns:** a :class:`ProbeData` in mm, radius X.
+
+    **Raises:** :class:`InputError` naming file, line, column and value for a missing
+    column, a non-numeric or non-finite cell, an unknown feature id or an empty file.
+    """
+    path = Path(path)
+    name = str(path)
+    if units not in _MM_PER:
+        raise InputError(f"unknown unit {units!r}; expected 'mm' or 'in'", file=name)
+    if x_mode not in ("diameter", "radius"):
+        raise InputError(f"unknown x_mode {x_mode!r}; expected 'diameter' or 'radius'", file=name)
+    if not path.is_file():
+        raise InputError("probe file not found", file=name)
+    rows = list(_lines_without_comments(path))
+    if not rows:
+        raise InputError("probe file is empty (a header row 'feature,x,z' is required)", file=name)
+    header_line, header_raw = rows[0]
+    header = [h.strip().lower() for h in next(csv.reader([header_raw]))]
+    for col in REQUIRED_COLUMNS:
+        if col not in header:
+            raise InputError(
+                f"missing required column {col!r}; header is {','.join(header)!r}, "
+                f"expected at least 'feature,x,z'",
+                file=name,
+                line=header_line,
+                column=col,
+            )
+    for col in header:
+        if header.count(col) > 1:
+            raise InputError(
+                "column appears twice in the header", file=name, line=header_line, column=col
+            )
+    unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
+    if unknown:
+        raise InputError(
+            f"unknown column {unknown[0]!r}; allowed: {', '.join(REQUIRED_COLUMNS + OPTIONAL_COLUMNS)}",
+            file=name,
+            line=header_line,
+            column=unknown[0],
+        )
+    idx = {c: header.index(c) for c in header}
+    if len(rows) == 1:
+        raise InputError("probe file has a header but no data rows", file=name)
+    scale = _MM_PER[units]
+    xscale = scale / 2.0 if x_mode == "diameter" else scale
+    part_default = default_part if default_part is not None else path.stem
+    cols: dict[str, list] = {c: [] for c in header}
+    lines = []
+    for lineno, raw in rows[1:]:
+        cells = next(csv.reader([raw]))
+        if len(cells) != len(header):
+            raise InputError(
+                f"row has {len(cells)} cells, the header has {len(header)}: {raw.strip()!r}",
+                file=name,
+                line=lineno,
+            )
+        for col, j in idx.items():
+            cell = cells[j].strip()
+            if col in _NUMERIC:
+                try:
+                    val = float(cell)
+                except ValueError:
+                    raise InputError(
+                        f"not a number: {cell!r}", file=name, line=lineno, column=col, value=cell
+                    ) from None
+                if not math.isfinite(val):
+                    raise InputError(
+                        f"value must be finite, got {cell!r}",
+                        file=name,
+                        line=lineno,
+                        column=col,
+                        value=cell,
+                    )
+                cols[col].append(val)
+            else:
+                if not cell:
+                    raise InputError("empty cell", file=name, line=lineno, column=col)
+                if col == "feature" and features is not None and cell not in features:
+                    raise InputError(
+                        f"unknown feature id {cell!r}; the study's profile has "
+                        f"{', '.join(features)}",
+                        file=name,
+                        line=lineno,
+                        column=col,
+                        feature=cell,
+                        value=cell,
+                    )
+                cols[col].append(cell)
+        lines.append(lineno)
+    n = len(lines)
+    pts = np.column_stack([np.array(cols["x"]) * xscale, np.array(cols["z"]) * scale])
+    approach = None
+    if "approach_x" in cols or "approach_z" in cols:
+        if not ("approach_x" in cols and "approach_z" in cols):
+            raise InputError(
+                "give both approach_x and approach_z, or neither", file=name, line=header_line
+            )
+        approach = np.column_stack([cols["approach_x"], cols["approach_z"]]).astype(float)
+        norms = np.linalg.norm(approach, axis=1)
+        bad = np.flatnonzero(norms == 0)
+        if bad.size:
+            raise InputError(
+                "approach direction is the zero vector",
+                file=name,
+                line=int(lines[bad[0]]),
+                column="approach_x",
+            )
+        approach = approach / norms[:, None]
+    return ProbeData(
+        file=name,
+        feature=np.array(cols["feature"], dtype=object).astype(str),
+        points=pts,
+        lines=np.array(lines, dtype=int),
+        part=np.array(cols.get("part", [part_default] * n), dtype=object).astype(str),
+        approach=approach,
+        time=np.array(cols["time"]) if "time" in cols else None,
+        temperature=np.array(cols["temperature"]) if "temperature" in cols else None,
+    )

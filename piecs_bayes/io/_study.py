@@ -1,0 +1,406 @@
+"""Study files (TOML): the part's nominal profile, the probe, the machine, the
+uncertainty sources, the probe files and the part program of one job.
+
+All lengths are converted to millimetres and X to radius here, at the
+boundary; every error names the file, the key path (``profile.feature[2].end``)
+and, where there is one, the feature id and the offending value. See
+``docs/formats.md`` for the format with an example.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from ..errors import InputError
+from ..geometry import MachineTransform, Profile, ProfileError, make_feature, profile_side
+
+__all__ = [
+    "Study",
+    "ProbeSpec",
+    "FitSettings",
+    "CompensationSettings",
+    "load_study",
+    "KNOWN_SOURCES",
+]
+
+_MM_PER = {"mm": 1.0, "in": 25.4}
+
+#: Uncertainty sources a study may declare, with the unit of their values.
+KNOWN_SOURCES = {
+    "repeatability": "mm (probe repeatability, standard deviation)",
+    "ball_radius": "mm (stylus ball radius calibration error)",
+    "pretravel": "mm (directional pretravel, along the approach)",
+    "scale_x": "1 (X axis scale error, e.g. 10e-6 = 10 ppm)",
+    "scale_z": "1 (Z axis scale error)",
+    "x_centre": "mm (centre-line offset error in X)",
+    "z_offset": "mm (work offset error in Z)",
+    "rotation": "rad (small rotation of the probe frame)",
+    "thermal": "1/K (thermal expansion error, times the temperature difference)",
+}
+_LENGTH_SOURCES = {"repeatability", "ball_radius", "pretravel", "x_centre", "z_offset"}
+_DIST_LENGTH_KEYS = {"mean", "sd", "low", "high", "scale"}
+
+
+@dataclass(frozen=True)
+class ProbeSpec:
+    """Touch-trigger probe: ball radius (mm) with its standard uncertainty,
+    repeatability sigma (mm), how the probe files write X, pretravel (mm)."""
+
+    ball_radius: float
+    ball_radius_u: float = 0.0
+    repeatability: float = 0.001
+    x_mode: str = "diameter"
+    pretravel: float = 0.0
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """How features are fitted. ``loss`` applies to ``method="robust"``; ``scale``
+    is the robust standard deviation (mm; default: the probe repeatability);
+    ``known_sigma`` scales covariances by the probe repeatability instead of the
+    residual variance."""
+
+    method: str = "robust"
+    loss: str = "huber"
+    scale: float | None = None
+    known_sigma: bool = False
+    min_points_line: int = 3
+    min_points_arc: int = 4
+
+
+@dataclass(frozen=True)
+class CompensationSettings:
+    """PIECS mirroring: ``gain`` in [0, 1] (1 = full mirroring) and the largest
+    correction (mm) of any vertex that the tool accepts."""
+
+    gain: float = 1.0
+    max_correction: float = 0.2
+
+
+@dataclass(frozen=True, eq=False)
+class Study:
+    """One compensation job, validated, in mm and radius X."""
+
+    path: Path
+    name: str
+    units: str
+    profile: Profile
+    probe: ProbeSpec
+    transform: MachineTransform
+    sources: MappingProxyType
+    probe_files: tuple[Path, ...]
+    program: Path | None
+    fit: FitSettings
+    compensation: CompensationSettings
+    sections: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+
+    def __repr__(self) -> str:
+        return (
+            f"Study({self.name!r}, {len(self.profile)} features "
+            f"[{', '.join(self.profile.ids)}], {len(self.probe_files)} probe file(s), "
+            f"program={self.program.name if self.program else None})"
+        )
+
+
+class _Reader:
+    """Typed access to the TOML tree that names the key path in every error."""
+
+    def __init__(self, file: str):
+        self.file = file
+
+    def error(self, key: str, message: str, *, feature=None, value=None) -> InputError:
+        return InputError(f"{key}: {message}", file=self.file, feature=feature, value=value)
+
+    def table(self, tree: dict, key: str, path: str, *, required=False) -> dict:
+        if key not in tree:
+            if required:
+                raise self.error(f"{path}{key}", "missing required table")
+            return {}
+        val = tree[key]
+        if not isinstance(val, dict):
+            raise self.error(f"{path}{key}", f"expected a table, got {val!r}", value=val)
+        return val
+
+    def number(self, tree, key, path, default=None, *, positive=False, nonneg=False, feature=None):
+        if key not in tree:
+            if default is None:
+                raise self.error(f"{path}{key}", "missing required number", feature=feature)
+            return default
+        val = tree[key]
+        if isinstance(val, bool) or not isinstance(val, (int, float)):
+            raise self.error(
+                f"{path}{key}", f"expected a number, got {val!r}", feature=feature, value=val
+            )
+        val = float(val)
+        if not math.isfinite(val):
+            raise self.error(
+                f"{path}{key}", f"expected a finite number, got {val!r}", feature=feature, value=val
+            )
+        if positive and val <= 0:
+            raise self.error(
+                f"{path}{key}", f"must be > 0, got {val!r}", feature=feature, value=val
+            )
+        if nonneg and val < 0:
+            raise self.error(
+                f"{path}{key}", f"must be >= 0, got {val!r}", feature=feature, value=val
+            )
+        return val
+
+    def choice(self, tree, key, path, options, default):
+        val = tree.get(key, default)
+        if val not in options:
+            raise self.error(
+                f"{path}{key}",
+                f"unknown value {val!r}; expected one of {', '.join(map(repr, options))}",
+                value=val,
+            )
+        return val
+
+    def point(self, tree, key, path, feature):
+        if key not in tree:
+            raise self.error(f"{path}{key}", "missing required point [x, z]", feature=feature)
+        val = tree[key]
+        if isinstance(val, dict):
+            val = [val.get("x"), val.get("z")]
+        if (
+            not isinstance(val, list)
+            or len(val) != 2
+            or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in val)
+        ):
+            raise self.error(
+                f"{path}{key}",
+                f"expected a point [x, z] of two numbers, got {val!r}",
+                feature=feature,
+                value=val,
+            )
+        if not all(math.isfinite(v) for v in val):
+            raise self.error(
+                f"{path}{key}", f"point must be finite, got {val!r}", feature=feature, value=val
+            )
+        return [float(val[0]), float(val[1])]
+
+
+def _features(r: _Reader, prof: dict, scale: float, xscale: float) -> list[dict]:
+    feats = prof.get("feature")
+    if not isinstance(feats, list) or not feats:
+        raise r.error("profile.feature", "the profile needs at least one [[profile.feature]]")
+    specs = []
+    for i, f in enumerate(feats):
+        path = f"profile.feature[{i}]."
+        if not isinstance(f, dict):
+            raise r.error(path[:-1], f"expected a table, got {f!r}")
+        fid = f.get("id")
+        if not isinstance(fid, str) or not fid.strip():
+            raise r.error(f"{path}id", f"expected a non-empty string id, got {fid!r}", value=fid)
+        kind = f.get("type")
+        if kind not in ("line", "arc"):
+            raise r.error(
+                f"{path}type",
+                f"unknown feature type {kind!r}; expected 'line' or 'arc'",
+                feature=fid,
+                value=kind,
+            )
+
+        def pt(key, path=path, f=f, fid=fid):
+            x, z = r.point(f, key, path, fid)
+            return (x * xscale, z * scale)
+
+        spec: dict[str, Any] = {"id": fid, "p0": pt("start"), "p1": pt("end")}
+        if kind == "arc":
+            spec["center"] = pt("center")
+            direction = f.get("direction")
+            if direction not in ("cw", "ccw"):
+                raise r.error(
+                    f"{path}direction",
+                    f"unknown arc direction {direction!r}; expected 'cw' or 'ccw' (drawing frame: z right, x up)",
+                    feature=fid,
+                    value=direction,
+                )
+            spec["ccw"] = direction == "ccw"
+            r0, r1 = math.dist(spec["p0"], spec["center"]), math.dist(spec["p1"], spec["center"])
+            if r0 <= 0 or abs(r0 - r1) > 1e-6 * max(1.0, r0):
+                raise r.error(
+                    f"{path}center",
+                    f"start and end are not equidistant from the centre (radii {r0:.6f} and {r1:.6f} mm)",
+                    feature=fid,
+                )
+        elif math.dist(spec["p0"], spec["p1"]) == 0:
+            raise r.error(f"{path}end", "line has zero length (start == end)", feature=fid)
+        tol = f.get("tolerance", [-0.01, 0.01])
+        if (
+            not isinstance(tol, list)
+            or len(tol) != 2
+            or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in tol)
+            or not tol[0] < tol[1]
+        ):
+            raise r.error(
+                f"{path}tolerance",
+                f"expected [lower, upper] deviations with lower < upper, got {tol!r}",
+                feature=fid,
+                value=tol,
+            )
+        spec["tolerance"] = (float(tol[0]) * scale, float(tol[1]) * scale)
+        specs.append(spec)
+    return specs
+
+
+def _sources(r: _Reader, tree: dict, scale: float) -> dict:
+    out = {}
+    for name, spec in tree.items():
+        path = f"uncertainty.{name}"
+        if name not in KNOWN_SOURCES:
+            raise r.error(
+                path,
+                f"unknown uncertainty source {name!r}; known: {', '.join(KNOWN_SOURCES)}",
+                value=name,
+            )
+        if not isinstance(spec, dict) or "dist" not in spec:
+            raise r.error(
+                path,
+                f"expected a table with 'dist' (normal, uniform, half_normal...), got {spec!r}",
+            )
+        spec = dict(spec)
+        for key, val in spec.items():
+            if key == "dist":
+                continue
+            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
+                raise r.error(f"{path}.{key}", f"expected a finite number, got {val!r}", value=val)
+            if name in _LENGTH_SOURCES and key in _DIST_LENGTH_KEYS:
+                spec[key] = float(val) * scale
+        out[name] = MappingProxyType(spec)
+    return out
+
+
+def _files(r: _Reader, tree: dict, base: Path) -> tuple[tuple[Path, ...], Path | None]:
+    probe_files = tree.get("probe_files", [])
+    if isinstance(probe_files, str):
+        probe_files = [probe_files]
+    if not isinstance(probe_files, list) or not all(isinstance(p, str) for p in probe_files):
+        raise r.error("study.probe_files", f"expected a list of file names, got {probe_files!r}")
+    paths = []
+    for p in probe_files:
+        matches = sorted(base.glob(p)) if any(ch in p for ch in "*?[") else [base / p]
+        if not matches:
+            raise r.error(
+                "study.probe_files", f"no file matches {p!r} (relative to {base})", value=p
+            )
+        paths.extend(matches)
+    program = tree.get("part_program")
+    if program is not None and not isinstance(program, str):
+        raise r.error("study.part_program", f"expected a file name, got {program!r}")
+    return tuple(paths), (base / program if program else None)
+
+
+def load_study(path) -> Study:
+    """Read and validate a study file.
+
+    **Arguments:**
+
+    - `path`: the TOML file; probe files and the part program are resolved
+      relative to its folder.
+
+    **Returns:** a :class:`Study` (mm, radius X).
+
+    **Raises:** :class:`InputError` naming the file, key path, feature and value.
+    """
+    path = Path(path)
+    name = str(path)
+    if not path.is_file():
+        raise InputError("study file not found", file=name)
+    try:
+        with open(path, "rb") as fh:
+            tree = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML: {exc}", file=name) from None
+    r = _Reader(name)
+    study = r.table(tree, "study", "", required=True)
+    units = r.choice(study, "units", "study.", ("mm", "in"), "mm")
+    scale = _MM_PER[units]
+
+    prof = r.table(tree, "profile", "", required=True)
+    x_mode = r.choice(prof, "x_mode", "profile.", ("radius", "diameter"), "radius")
+    kind = r.choice(prof, "kind", "profile.", ("external", "internal"), "external")
+    tangent_tol = r.number(prof, "tangent_tolerance_deg", "profile.", 0.5, positive=True)
+    specs = _features(r, prof, scale, scale / 2 if x_mode == "diameter" else scale)
+    try:
+        side = profile_side(specs, internal=kind == "internal")
+        profile = Profile(tuple(make_feature(s, side) for s in specs), tangent_tol_deg=tangent_tol)
+    except ProfileError as exc:
+        raise InputError(str(exc), file=name, feature=exc.feature) from None
+
+    pr = r.table(tree, "probe", "", required=True)
+    probe = ProbeSpec(
+        ball_radius=r.number(pr, "ball_radius", "probe.", positive=True) * scale,
+        ball_radius_u=r.number(pr, "ball_radius_u", "probe.", 0.0, nonneg=True) * scale,
+        repeatability=r.number(pr, "repeatability", "probe.", 0.001 / scale, positive=True) * scale,
+        x_mode=r.choice(pr, "x_mode", "probe.", ("diameter", "radius"), "diameter"),
+        pretravel=r.number(pr, "pretravel", "probe.", 0.0) * scale,
+    )
+    for f in profile.features:
+        if f.kind == "arc" and not f.convex and f.radius <= probe.ball_radius:
+            raise InputError(
+                f"concave arc radius {f.radius:g} mm is not larger than the probe ball radius "
+                f"{probe.ball_radius:g} mm: the ball cannot touch it",
+                file=name,
+                feature=f.id,
+                value=f.radius,
+            )
+
+    m = r.table(tree, "machine", "")
+    transform = MachineTransform(
+        x_centre=r.number(m, "x_centre", "machine.", 0.0) * scale,
+        z_offset=r.number(m, "z_offset", "machine.", 0.0) * scale,
+        scale_x=r.number(m, "scale_x", "machine.", 0.0),
+        scale_z=r.number(m, "scale_z", "machine.", 0.0),
+        rotation=r.number(m, "rotation", "machine.", 0.0),
+    )
+    sources = _sources(r, r.table(tree, "uncertainty", ""), scale)
+
+    ft = r.table(tree, "fit", "")
+    fit = FitSettings(
+        method=r.choice(ft, "method", "fit.", ("lsq", "robust", "bayes"), "robust"),
+        loss=r.choice(
+            ft, "loss", "fit.", ("linear", "huber", "soft_l1", "cauchy", "tukey"), "huber"
+        ),
+        scale=(r.number(ft, "scale", "fit.", positive=True) * scale) if "scale" in ft else None,
+        known_sigma=bool(ft.get("known_sigma", False)),
+        min_points_line=int(r.number(ft, "min_points_line", "fit.", 3.0, positive=True)),
+        min_points_arc=int(r.number(ft, "min_points_arc", "fit.", 4.0, positive=True)),
+    )
+    if fit.min_points_line < 3 or fit.min_points_arc < 4:
+        raise r.error(
+            "fit.min_points_line",
+            "at least 3 points per line and 4 per arc are needed for an uncertainty",
+        )
+
+    cp = r.table(tree, "compensation", "")
+    gain = r.number(cp, "gain", "compensation.", 1.0)
+    if not 0.0 <= gain <= 1.0:
+        raise r.error("compensation.gain", f"gain must be in [0, 1], got {gain!r}", value=gain)
+    comp = CompensationSettings(
+        gain=gain,
+        max_correction=r.number(cp, "max_correction", "compensation.", 0.2 / scale, positive=True)
+        * scale,
+    )
+    probe_files, program = _files(r, study, path.parent)
+    known = {"study", "profile", "probe", "machine", "uncertainty", "fit", "compensation"}
+    extra = {k: v for k, v in tree.items() if k not in known}
+    return Study(
+        path=path,
+        name=str(study.get("name", path.stem)),
+        units=units,
+        profile=profile,
+        probe=probe,
+        transform=transform,
+        sources=MappingProxyType(sources),
+        probe_files=probe_files,
+        program=program,
+        fit=fit,
+        compensation=comp,
+        sections=MappingProxyType(extra),
+    )
