@@ -10,7 +10,7 @@ import numpy as np
 
 from .compensate import AdjustedPath, adjusted_path
 from .errors import InputError
-from .fit import ProfileFit, fit_profile
+from .fit import ProfileFit, fit_profile, fit_profile_joint
 from .fit._features import to_part_frame
 from .fit._robust import TUNING
 from .io import ProbeData, Study, load_study, read_probe_csv
@@ -85,6 +85,27 @@ def fit_study(
     method = method or study.fit.method
     if method == "bayes":
         method = "robust"  # the Bayesian fit starts from the robust one; see fit.bayes
+    loss = "linear" if method == "lsq" else study.fit.loss
+    sigma = study.probe.repeatability if study.fit.known_sigma else None
+    if study.fit.free_transform:
+        return fit_profile_joint(
+            study.profile,
+            data.feature,
+            data.points,
+            ball_radius=study.probe.ball_radius,
+            transform=study.transform,
+            free_transform=study.fit.free_transform,
+            fix=study.fit.fix,
+            loss=loss,
+            scale=robust_scale(study) if loss != "linear" else None,
+            sigma=sigma,
+            lines=data.lines,
+            part=part,
+        )
+    fix: dict[str, list] = {}
+    for item in study.fit.fix:
+        fid, _, name = item.partition(".")
+        fix.setdefault(fid, []).append(name)
     centres = to_part_frame(study.transform, data.points)
     return fit_profile(
         study.profile,
@@ -94,7 +115,8 @@ def fit_study(
         method=method,
         loss=study.fit.loss,
         scale=robust_scale(study),
-        sigma=study.probe.repeatability if study.fit.known_sigma else None,
+        sigma=sigma,
+        fix=fix,
         lines=data.lines,
         min_points={"line": study.fit.min_points_line, "arc": study.fit.min_points_arc},
         file=data.file,

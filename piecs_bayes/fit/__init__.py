@@ -24,3 +24,5 @@ from ._features import feature_residuals as feature_residuals
 from ._features import fit_feature as fit_feature
 from ._profile_fit import ProfileFit as ProfileFit
 from ._profile_fit import fit_profile as fit_profile
+from ._joint import TRANSFORM_PARAMS as TRANSFORM_PARAMS
+from ._joint import fit_profile_joint as fit_profile_joint

@@ -71,6 +71,8 @@ class FitSettings:
     known_sigma: bool = False
     min_points_line: int = 3
     min_points_arc: int = 4
+    fix: tuple[str, ...] = ()
+    free_transform: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -371,6 +373,35 @@ def load_study(path) -> Study:
         known_sigma=bool(ft.get("known_sigma", False)),
         min_points_line=int(r.number(ft, "min_points_line", "fit.", 3.0, positive=True)),
         min_points_arc=int(r.number(ft, "min_points_arc", "fit.", 4.0, positive=True)),
+    )
+    for key in ("fix", "free_transform"):
+        val = ft.get(key, [])
+        if not isinstance(val, list) or not all(isinstance(v, str) for v in val):
+            raise r.error(f"fit.{key}", f"expected a list of names, got {val!r}", value=val)
+    for item in ft.get("fix", []):
+        fid, _, pname = item.partition(".")
+        if fid not in profile.ids or pname not in profile[fid].param_names:
+            raise r.error(
+                "fit.fix",
+                f"cannot fix {item!r}: expected 'feature.parameter' with a feature of the profile "
+                f"and one of its parameters (line: offset, rotation; arc: center_x, center_z, radius)",
+                feature=fid,
+                value=item,
+            )
+    transform_names = ("x_centre", "z_offset", "scale_x", "scale_z", "rotation")
+    for item in ft.get("free_transform", []):
+        if item not in transform_names:
+            raise r.error(
+                "fit.free_transform",
+                f"unknown transform parameter {item!r}; expected one of {', '.join(transform_names)}",
+                value=item,
+            )
+    fit = FitSettings(
+        **{
+            **fit.__dict__,
+            "fix": tuple(ft.get("fix", [])),
+            "free_transform": tuple(ft.get("free_transform", [])),
+        }
     )
     if fit.min_points_line < 3 or fit.min_points_arc < 4:
         raise r.error(

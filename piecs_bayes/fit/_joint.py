@@ -1,0 +1,181 @@
+"""Joint fit of a whole profile with shared machine-to-part parameters.
+
+All features are fitted at once together with corrections to the transform
+parameters (centre-line offset ``x_centre``, work offset ``z_offset``, axis
+scale errors ``scale_x``/``scale_z``, ``rotation``) that every point shares.
+Transform parameters are fixed unless freed; any feature parameter can be
+fixed (``"fillet.radius"``). Freeing ``x_centre`` together with every diameter
+offset is singular (they move the same way): the result then has no
+covariance and says why, so fix a reference feature.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import MachineTransform, Profile, machine_to_part
+from ._features import FeatureFit
+from ._least_squares import least_squares
+from ._profile_fit import ProfileFit
+
+__all__ = ["fit_profile_joint", "TRANSFORM_PARAMS"]
+
+TRANSFORM_PARAMS = ("x_centre", "z_offset", "scale_x", "scale_z", "rotation")
+
+
+def _parse_fix(profile: Profile, fix) -> dict[str, set]:
+    out: dict[str, set] = {f.id: set() for f in profile.features}
+    for item in fix:
+        fid, _, name = str(item).partition(".")
+        if fid not in out:
+            raise InputError(
+                f"cannot fix {item!r}: unknown feature {fid!r}; the profile has {', '.join(profile.ids)}",
+                feature=fid,
+                value=item,
+            )
+        if name not in profile[fid].param_names:
+            raise InputError(
+                f"cannot fix {item!r}: {fid!r} has parameters {', '.join(profile[fid].param_names)}",
+                feature=fid,
+                value=item,
+            )
+        out[fid].add(name)
+    return out
+
+
+def fit_profile_joint(
+    profile: Profile,
+    feature_ids,
+    machine_points,
+    *,
+    ball_radius: float,
+    transform: MachineTransform = MachineTransform(),
+    free_transform=(),
+    fix=(),
+    loss: str = "linear",
+    scale: float | None = None,
+    sigma: float | None = None,
+    lines=None,
+    part: str | None = None,
+) -> ProfileFit:
+    """Fit every feature and the freed transform parameters together.
+
+    **Arguments:**
+
+    - `feature_ids`, `machine_points`: per point, its feature and its ball
+      centre in **machine** coordinates (radius X, mm).
+    - `transform`: the nominal machine->part transform (the study's).
+    - `free_transform`: names from ``TRANSFORM_PARAMS`` to estimate.
+    - `fix`: ``"feature.parameter"`` names held at nominal.
+    - `loss`, `scale`, `sigma`: as for :func:`least_squares`.
+
+    **Returns:** a :class:`ProfileFit` whose ``transform`` holds the estimated
+    transform corrections with standard uncertainties, and whose feature fits
+    carry their blocks of the joint covariance.
+    """
+    for name in free_transform:
+        if name not in TRANSFORM_PARAMS:
+            raise InputError(
+                f"unknown transform parameter {name!r}; expected one of {', '.join(TRANSFORM_PARAMS)}",
+                value=name,
+            )
+    feature_ids = np.asarray(feature_ids).astype(str)
+    pts = np.asarray(machine_points, dtype=float)
+    lines = np.arange(1, len(pts) + 1) if lines is None else np.asarray(lines)
+    fixed = _parse_fix(profile, fix)
+    measured = [f for f in profile.features if np.any(feature_ids == f.id)]
+    unmeasured = tuple(f.id for f in profile.features if f not in measured)
+    order = np.concatenate([np.flatnonzero(feature_ids == f.id) for f in measured])
+    groups, start = [], 0
+    for f in measured:
+        k = int(np.sum(feature_ids == f.id))
+        free = tuple(i for i, n in enumerate(f.param_names) if n not in fixed[f.id])
+        groups.append((f, slice(start, start + k), free))
+        start += k
+    free_t = tuple(TRANSFORM_PARAMS.index(n) for n in free_transform)
+    base = transform.as_array()
+
+    def fn(y, args):
+        points, rb = args
+        t = base.at[jnp.array(free_t, dtype=int)].add(y["transform"]) if free_t else base
+        part_pts = machine_to_part(points, t)
+        res = []
+        for f, sl, free in groups:
+            dev = jnp.zeros(f.nparams).at[jnp.array(free, dtype=int)].set(y["features"][f.id])
+            res.append(f.signed_distance(part_pts[sl], dev) - rb)
+        return jnp.concatenate(res)
+
+    y0 = {
+        "features": {f.id: jnp.zeros(len(free)) for f, _, free in groups},
+        "transform": jnp.zeros(len(free_t)),
+    }
+    n_par = sum(len(fr) for _, _, fr in groups) + len(free_t)
+    if len(order) <= n_par:
+        raise InputError(f"{len(order)} points are too few for a joint fit of {n_par} parameters")
+    res = least_squares(
+        fn,
+        y0,
+        (jnp.asarray(pts[order]), jnp.asarray(float(ball_radius))),
+        loss=loss,
+        scale=scale,
+        sigma=sigma,
+    )
+    # Map the flat covariance (ravel order: features by sorted id, then transform)
+    names = res.param_names
+    cov = res.covariance
+    fits = {}
+    outl = set(res.outliers)
+    for f, sl, free in groups:
+        values = np.zeros(f.nparams)
+        values[list(free)] = np.asarray(res.params["features"][f.id])
+        fcov = None
+        if cov is not None:
+            idx = [names.index(f"features.{f.id}[{j}]") for j in range(len(free))]
+            fcov = np.zeros((f.nparams, f.nparams))
+            fcov[np.ix_(free, free)] = cov[np.ix_(idx, idx)]
+        centres = np.asarray(
+            machine_to_part(jnp.asarray(pts[order][sl]), _final_transform(base, free_t, res))
+        )
+        surface = centres - ball_radius * np.asarray(
+            f.outward_normal(jnp.asarray(centres), jnp.asarray(values))
+        )
+        nominal = np.asarray(f.closest_point(jnp.asarray(surface)))
+        local_out = np.array(
+            [i - sl.start for i in range(sl.start, sl.stop) if i in outl], dtype=int
+        )
+        fits[f.id] = FeatureFit(
+            feature=f,
+            values=values,
+            std_errors=None if fcov is None else np.sqrt(np.diag(fcov)),
+            covariance=fcov,
+            points=centres,
+            residuals=np.asarray(res.residuals)[sl],
+            weights=np.asarray(res.weights)[sl],
+            outliers=local_out,
+            lines=lines[order][sl],
+            nominal_points=nominal,
+            error_vectors=surface - nominal,
+            method="joint/" + (loss if loss != "linear" else "lsq"),
+            result=res,
+            fixed=tuple(sorted(fixed[f.id])),
+        )
+    tvals = np.asarray(res.params["transform"])
+    tinfo = {}
+    for k, name in enumerate(free_transform):
+        se = None
+        if cov is not None:
+            i = names.index(f"transform[{k}]")
+            se = float(np.sqrt(cov[i, i]))
+        tinfo[name] = {"value": float(tvals[k]), "std_error": se}
+    out = ProfileFit(profile, fits, "joint", unmeasured, part)
+    object.__setattr__(out, "transform", tinfo)
+    object.__setattr__(out, "result", res)
+    return out
+
+
+def _final_transform(base, free_t, res):
+    if not free_t:
+        return base
+    return base.at[jnp.array(free_t, dtype=int)].add(jnp.asarray(res.params["transform"]))
