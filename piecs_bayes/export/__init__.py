@@ -2,6 +2,26 @@
 
 from ._atomic import write_bytes_atomic as write_bytes_atomic
 from ._atomic import write_text_atomic as write_text_atomic
+from ._errspec import CompensationTable as CompensationTable
+from ._errspec import ErrorSpec as ErrorSpec
+from ._errspec import LinuxCNCComp as LinuxCNCComp
+from ._errspec import errspec_texts as errspec_texts
+from ._errspec import linuxcnc_comp_text as linuxcnc_comp_text
+from ._errspec import parse_linuxcnc_comp as parse_linuxcnc_comp
+from ._errspec import read_errspec as read_errspec
+from ._errspec import read_linuxcnc_comp as read_linuxcnc_comp
+from ._errspec import validate_linuxcnc_comp as validate_linuxcnc_comp
+from ._errspec import write_errspec as write_errspec
+from ._errspec import write_linuxcnc_comp as write_linuxcnc_comp
+from ._offsets import AxisCorrection as AxisCorrection
+from ._offsets import OffsetSettings as OffsetSettings
+from ._offsets import ToolOffsets as ToolOffsets
+from ._offsets import ToolOffsetUpdate as ToolOffsetUpdate
+from ._offsets import g10_fanuc as g10_fanuc
+from ._offsets import g10_linuxcnc as g10_linuxcnc
+from ._offsets import offsets_from_json as offsets_from_json
+from ._offsets import offsets_to_json as offsets_to_json
+from ._offsets import tool_offset_update as tool_offset_update
 from ._tables import fit_csv as fit_csv
 from ._tables import fit_json as fit_json
 from ._tables import path_csv as path_csv

@@ -1,0 +1,213 @@
+"""Compensation decisions: known-truth scenarios, exact rules, and realised loss."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import special
+
+from piecs_bayes.compensate import (
+    DecisionSettings,
+    conformance,
+    decide,
+    settings_from_spec,
+)
+from piecs_bayes.errors import InputError
+
+TOL = (-0.010, 0.010)
+
+
+def test_deviation_far_above_noise_is_compensated():
+    d = decide(tolerance=TOL, mean=0.006, sd=0.0005, n_points=20, feature="D1")
+    assert d.verdict == "compensate"
+    assert d.gain == pytest.approx(1.0, abs=1e-6)
+    assert d.correction == pytest.approx(-0.006, abs=1e-8)
+    assert d.u_correction == pytest.approx(0.0005)
+    assert d.p_exceed > 0.999 and d.significant
+    assert d.conformance_after.state == "conforms"
+    assert d.best_action in ("full", "grubbs", "grubbs_prior", "bayes")
+    assert "compensate with gain 1.000" in d.reasons[-1]
+
+
+def test_deviation_inside_noise_is_not_compensated():
+    d = decide(tolerance=TOL, mean=0.0005, sd=0.0008, n_points=20, feature="D2")
+    assert d.verdict == "do not compensate"
+    assert d.gain == 0.0 and d.correction == 0.0
+    assert d.p_exceed < 0.05
+    assert d.conformance_before.state == "conforms"
+
+
+def test_significance_is_required_without_a_prior():
+    # 1.6 sigma above the null band: cheaper to adjust, but not significant
+    d = decide(
+        tolerance=TOL,
+        mean=0.0035,
+        sd=0.001,
+        settings=DecisionSettings(adjustment_cost=0.0),
+        n_points=20,
+    )
+    bayes = d.actions[-1]
+    assert bayes.correction != 0.0  # the loss alone would adjust ...
+    assert 0.5 < d.p_exceed < 0.95
+    assert d.verdict == "do not compensate"  # ... but the evidence is too weak
+    assert any("not significant" in r for r in d.reasons)
+
+
+def test_near_tolerance_with_large_uncertainty_measures_more():
+    d = decide(tolerance=TOL, mean=0.009, sd=0.006, n_points=10, feature="D3")
+    assert d.verdict == "measure more"
+    assert d.conformance_before.state == "ambiguous"
+    assert d.more_points == 9
+    assert "9 more probe points (10 -> 19" in d.reasons[-1]
+    # with the extra points (u ~ 1/sqrt(n)) the same estimate is decided
+    after = decide(tolerance=TOL, mean=0.009, sd=0.006 * math.sqrt(10 / 19), n_points=19)
+    assert after.verdict == "compensate"
+    one_less = decide(tolerance=TOL, mean=0.009, sd=0.006 * math.sqrt(10 / 18), n_points=18)
+    assert one_less.verdict == "measure more"
+
+
+def test_measure_more_without_point_count_says_so():
+    d = decide(tolerance=TOL, mean=0.009, sd=0.006)
+    assert d.verdict == "measure more" and d.more_points is None
+    assert "give n_points" in d.reasons[-1]
+
+
+def test_a_correction_above_the_limit_is_blocked():
+    d = decide(tolerance=TOL, mean=0.05, sd=0.001, n_points=12)
+    assert d.verdict == "do not compensate" and d.blocked
+    assert "exceeds max_correction 0.02" in d.reasons[-1]
+    assert all(a.blocked for a in d.actions if a.correction != 0.0)
+
+
+def test_one_shot_rule_from_the_design():
+    # quadratic loss only: adjust iff m^2 > s_A^2 + C_A/k
+    k, s_a, c_a = 1.0e4, 0.001, 0.03
+    threshold = math.sqrt(s_a**2 + c_a / k)  # 0.002
+    st = DecisionSettings(
+        loss_k=k,
+        adjustment_sd=s_a,
+        adjustment_cost=c_a,
+        out_of_tolerance_cost=0.0,
+        require_significance=False,
+    )
+    for m, adjusts in ((0.98 * threshold, False), (1.02 * threshold, True)):
+        d = decide(tolerance=(-1.0, 1.0), mean=m, sd=1e-4, settings=st)
+        assert (d.actions[-1].correction != 0.0) is adjusts, m
+        full, none = d.actions[1], d.actions[0]
+        assert full.expected_loss - none.expected_loss == pytest.approx(
+            k * (s_a**2 - m**2) + c_a, rel=1e-9
+        )
+
+
+def test_bayes_gain_equals_grubbs_prior_shrinkage():
+    # quadratic loss, no costs: the Bayes correction is minus the posterior mean
+    s_d, u = 0.003, 0.002
+    st = DecisionSettings(prior_sd=s_d, adjustment_cost=0.0, out_of_tolerance_cost=0.0, loss_k=1.0)
+    d = decide(tolerance=TOL, mean=0.004, sd=u, settings=st)
+    shrink = 1.0 / (1.0 + u**2 / s_d**2)
+    names = {a.name: a for a in d.actions}
+    assert names["grubbs_prior"].gain == pytest.approx(shrink)
+    assert names["bayes"].gain == pytest.approx(shrink, abs=1e-6)
+    assert d.posterior_mean == pytest.approx(0.004 * shrink)
+    assert d.verdict == "compensate" and d.gain == pytest.approx(shrink, abs=1e-6)
+    # Grubbs' harmonic rule for the 3rd adjustment: -y/3, prior form -y/(3 + u^2/s_d^2)
+    d3 = decide(tolerance=TOL, mean=0.004, sd=u, settings=st, run_index=3)
+    names = {a.name: a for a in d3.actions}
+    assert names["grubbs"].gain == pytest.approx(1 / 3)
+    assert names["grubbs_prior"].gain == pytest.approx(1 / (3 + u**2 / s_d**2))
+
+
+def test_samples_agree_with_mean_and_sd():
+    rng = np.random.default_rng(0)
+    draws = rng.normal(0.006, 0.0005, 20000)
+    a = decide(tolerance=TOL, samples=draws)
+    b = decide(tolerance=TOL, mean=float(draws.mean()), sd=float(draws.std(ddof=1)))
+    assert a.verdict == b.verdict == "compensate"
+    assert a.p_exceed == pytest.approx(b.p_exceed, abs=1e-3)
+    assert a.correction == pytest.approx(b.correction, abs=1e-5)
+    for x, y in zip(a.actions, b.actions, strict=True):
+        assert x.expected_loss == pytest.approx(y.expected_loss, rel=0.05)
+
+
+def test_iso_14253_conformance():
+    c = conformance(0.007, 0.001, TOL)  # U = 0.002: acceptance [-0.008, 0.008]
+    assert c.state == "conforms" and c.acceptance == pytest.approx((-0.008, 0.008))
+    assert c.p_conform == pytest.approx(special.ndtr(3.0) - special.ndtr(-17.0))
+    assert conformance(0.009, 0.001, TOL).state == "ambiguous"
+    assert conformance(0.0125, 0.001, TOL).state == "does not conform"
+    assert conformance(0.0, 0.006, TOL).acceptance[0] > 0.0  # empty zone: U too large
+    assert conformance(0.0, 0.006, TOL).state == "ambiguous"
+
+
+def test_settings_from_spec_validates_keys_and_values():
+    st = settings_from_spec({"null_band": 0.001, "feedback_gain": 0.7, "parts_per_decision": 5})
+    assert st.null_band == 0.001 and st.feedback_gain == 0.7 and st.parts_per_decision == 5
+    assert settings_from_spec(None) == DecisionSettings()
+    with pytest.raises(InputError, match=r"unknown decision setting 'nul_band' \(value 0.001\)"):
+        settings_from_spec({"nul_band": 0.001})
+    with pytest.raises(
+        InputError, match=r"'feedback_gain': expected a number in \(0, 1\], got 1.5"
+    ):
+        settings_from_spec({"feedback_gain": 1.5})
+    with pytest.raises(InputError, match=r"study.toml: decision setting 'prior_sd'.*got -0.1"):
+        settings_from_spec({"prior_sd": -0.1}, file="study.toml")
+    with pytest.raises(InputError, match="'parts_per_decision': expected an integer >= 1"):
+        settings_from_spec({"parts_per_decision": 2.5})
+    with pytest.raises(InputError, match="'adjustment_cost'.*got True"):
+        settings_from_spec({"adjustment_cost": True})
+
+
+def test_bad_arguments_are_named():
+    with pytest.raises(InputError, match="feature 'F7'.*sd must be a finite number > 0"):
+        decide(tolerance=TOL, mean=0.0, sd=0.0, feature="F7")
+    with pytest.raises(InputError, match="lower < upper"):
+        decide(tolerance=(0.01, -0.01), mean=0.0, sd=0.001)
+    with pytest.raises(InputError, match="either mean and sd or samples"):
+        decide(tolerance=TOL, mean=0.0, sd=0.001, samples=[0.0, 0.1])
+
+
+def _realised_loss(delta, c, st, tol):
+    """Loss actually suffered for true deviations `delta` and corrections `c`."""
+    lo, hi = tol
+    k = st.out_of_tolerance_cost / ((hi - lo) / 2) ** 2
+    adj = c != 0.0
+    d = delta + c
+    tau = np.sqrt(st.process_sd**2 + st.adjustment_sd**2 * adj)
+    p_out = special.ndtr((lo - d) / tau) + special.ndtr((d - hi) / tau)
+    return k * (d**2 + tau**2) + st.out_of_tolerance_cost * p_out + st.adjustment_cost * adj
+
+
+@pytest.mark.parametrize(
+    "s_d, u, extra",
+    [
+        (0.005, 0.002, {}),  # deviations mostly far above the noise
+        (0.003, 0.002, {}),  # comparable
+        (0.004, 0.002, {"adjustment_sd": 0.001, "adjustment_cost": 0.2}),  # costly changes
+    ],
+)
+def test_realised_loss_no_worse_than_best_fixed_policy(s_d, u, extra):
+    """Deviations drawn from the prior, measured with known sd; a 'measure more'
+    verdict takes the extra points (new, smaller noise) and decides again."""
+    rng = np.random.default_rng(12345)
+    st = DecisionSettings(prior_sd=s_d, process_sd=0.002, **extra)
+    runs, n = 1000, 10
+    delta = rng.normal(0.0, s_d, runs)
+    y = delta + rng.normal(0.0, u, runs)
+    chosen = np.zeros(runs)
+    for i in range(runs):
+        d = decide(tolerance=TOL, mean=y[i], sd=u, settings=st, n_points=n)
+        if d.verdict == "measure more" and d.more_points:
+            u2 = u * math.sqrt(n / (n + d.more_points))
+            y2 = delta[i] + rng.normal(0.0, u2)
+            d = decide(tolerance=TOL, mean=y2, sd=u2, settings=st, n_points=n + d.more_points)
+        chosen[i] = d.correction
+    fixed = {
+        "none": np.zeros(runs),
+        "full": -y,
+        "fraction": -st.feedback_gain * y,
+    }
+    loss = _realised_loss(delta, chosen, st, TOL)
+    best = min(fixed, key=lambda p: _realised_loss(delta, fixed[p], st, TOL).mean())
+    diff = loss - _realised_loss(delta, fixed[best], st, TOL)  # paired: same deviations
+    se = diff.std(ddof=1) / math.sqrt(runs)
+    assert diff.mean() <= 2 * se, (best, diff.mean(), se)
