@@ -15,7 +15,17 @@ from .fit._features import to_part_frame
 from .fit._robust import TUNING
 from .io import ProbeData, Study, load_study, read_probe_csv
 
-__all__ = ["load_probe_data", "fit_study", "compensate_study", "load_study", "robust_scale"]
+__all__ = [
+    "load_probe_data",
+    "fit_study",
+    "compensate_study",
+    "load_study",
+    "robust_scale",
+    "inliers",
+    "bayes_study",
+    "toolpath_uncertainty",
+    "pooled_sigma",
+]
 
 
 def load_probe_data(study: Study, files=None) -> ProbeData:
@@ -132,3 +142,127 @@ def compensate_study(study: Study, fit: ProfileFit, *, gain=None) -> AdjustedPat
         gain=study.compensation.gain if gain is None else gain,
         max_correction=study.compensation.max_correction,
     )
+
+
+def _part_data(study: Study, probe: ProbeData | None, part: str | None) -> ProbeData:
+    probe = load_probe_data(study) if probe is None else probe
+    parts = probe.parts
+    if len(parts) == 1:
+        return probe
+    return probe.for_part(part if part is not None else parts[0])
+
+
+def inliers(fit: ProfileFit, probe: ProbeData) -> ProbeData:
+    """The triggers of ``probe`` (one part) that the fit did not flag as outliers."""
+    keep = np.ones(len(probe), dtype=bool)
+    for f in fit:
+        rows = np.flatnonzero(probe.feature == f.id)
+        keep[rows[f.outliers]] = False
+    return probe.select(keep)
+
+
+def pooled_sigma(fit: ProfileFit) -> tuple[float, int]:
+    """Pooled residual standard deviation of the inliers over all features, and its dof."""
+    ss, dof = 0.0, 0
+    for f in fit:
+        keep = np.ones(f.n, dtype=bool)
+        keep[f.outliers] = False
+        ss += float(np.sum(f.residuals[keep] ** 2))
+        dof += int(keep.sum()) - (len(f.values) - len(f.fixed))
+    if dof <= 0:
+        raise InputError("too few points to estimate the probe repeatability from the residuals")
+    return float(np.sqrt(ss / dof)), dof
+
+
+def bayes_study(
+    study: Study,
+    fit: ProfileFit | None = None,
+    probe: ProbeData | None = None,
+    *,
+    part: str | None = None,
+    nsteps: int | None = None,
+    seed: int = 0,
+    progress: bool = True,
+    on_fail: str = "warn",
+):
+    """Bayesian fit of one part: deviations plus the study's error sources.
+
+    Starts from the robust fit (``fit``, made if not given). With the Gaussian
+    likelihood the robust fit's outliers are left out; the Student-t
+    likelihood keeps every trigger (it is the robust Bayesian option).
+    """
+    from .fit import fit_profile_bayes
+
+    data = _part_data(study, probe, part)
+    fit = fit_study(study, data, method="robust") if fit is None else fit
+    use = data if study.fit.likelihood == "student_t" else inliers(fit, data)
+    return fit_profile_bayes(
+        study.profile,
+        use.feature,
+        use.points,
+        start=fit.deviations,
+        start_cov=fit.covariances,
+        sources=dict(study.sources),
+        ball_radius=study.probe.ball_radius,
+        transform=study.transform,
+        sigma=study.probe.repeatability,
+        likelihood=study.fit.likelihood,
+        nu=study.fit.nu,
+        approach=use.approach,
+        nsteps=nsteps or study.fit.bayes_steps,
+        nwalkers=study.fit.bayes_walkers,
+        n_ensembles=study.fit.bayes_ensembles,
+        seed=seed,
+        progress=progress,
+        on_fail=on_fail,
+        part=fit.part,
+        file=str(study.path),
+    )
+
+
+def toolpath_uncertainty(
+    study: Study,
+    fit: ProfileFit,
+    probe: ProbeData | None = None,
+    *,
+    bayes=None,
+    part: str | None = None,
+    gain=None,
+):
+    """Uncertainty of the adjusted tool path: linearised (GUM) from the fit, and
+    Monte Carlo (JCGM 101) from the posterior when ``bayes`` is given.
+
+    The linearised probe sigma is the known repeatability, or, when the study
+    declares ``repeatability`` as a source to estimate, the pooled residual
+    standard deviation (as the Bayesian model estimates it).
+
+    **Returns:** ``{"linearised": ToolpathUncertainty, "monte_carlo": ... or None}``.
+    """
+    from .uncertainty import linearised_toolpath, monte_carlo_toolpath
+    from .uncertainty._toolpath import LINEARISED_SOURCES
+
+    data = inliers(fit, _part_data(study, probe, part or fit.part))
+    gain = study.compensation.gain if gain is None else gain
+    sigma = pooled_sigma(fit)[0] if "repeatability" in study.sources else study.probe.repeatability
+    source_sd = {}
+    for name, spec in study.sources.items():
+        if name in LINEARISED_SOURCES:
+            from .fit import prior_from_spec
+
+            source_sd[name] = prior_from_spec(name, dict(spec), file=str(study.path)).sd
+    lin = linearised_toolpath(
+        study.profile,
+        data.feature,
+        data.points,
+        fit.deviations,
+        ball_radius=study.probe.ball_radius,
+        sigma=sigma,
+        transform=study.transform,
+        source_sd=source_sd,
+        approach=data.approach if "pretravel" in source_sd else None,
+        gain=gain,
+    )
+    mc = None
+    if bayes is not None:
+        mc = monte_carlo_toolpath(study.profile, bayes.deviation_samples, gain=gain, grid=lin.grid)
+    return {"linearised": lin, "monte_carlo": mc}

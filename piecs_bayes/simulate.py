@@ -282,7 +282,7 @@ DEMO_POINTS = {
 
 DEMO_EXTRA = """
 [uncertainty]                 # error sources, each with a distribution (lengths in mm)
-repeatability = { dist = "half_normal", scale = 0.002 }
+repeatability = { dist = "half_normal", sd = 0.002 }
 ball_radius = { dist = "normal", mean = 0.0, sd = 0.0005 }
 scale_x = { dist = "normal", mean = 0.0, sd = 5e-6 }
 scale_z = { dist = "normal", mean = 0.0, sd = 5e-6 }
@@ -391,9 +391,24 @@ def write_demo(out_dir, *, seed: int = 20261123) -> dict:
 def write_batch(
     out_dir, *, n_parts: int = 36, tool_change_at: int = 21, seed: int = 7
 ) -> list[dict]:
-    """A run of ``n_parts`` demo shafts: tool wear drifting part to part and a
-    tool change (a step in the tool offset, wear reset) at part ``tool_change_at``.
-    Writes one probe file per part, ``study.toml`` and ``truth.json``."""
+    """A production run of ``n_parts`` demo shafts for a capability study.
+
+    The process (radius X, mm), chosen to look like a real finish cut:
+
+    - part and tool deflection ``8e-5`` per mm of overhang (D24 ~ +7 um,
+      D44 ~ +2 um), a nose radius 2 um larger than in the tool table;
+    - the first insert is set 2 um large in X and 8 um short in Z; its flank wear
+      grows the diameters by 0.3 um (radius) per part, also within a part (the
+      wear is proportional to the length of cut);
+    - part-to-part scatter (material, temperature) of 0.8 um in X and Z;
+    - a **tool change** before part ``tool_change_at``: the new insert sits 6 um
+      small in X and 3 um long in Z, and its wear starts from zero (a step of
+      about -12 um on every diameter: the stability check must find it).
+
+    Probe noise 1.5 um, 8-10 points per feature (as the demo part). Writes one
+    probe file per part (``partNN.csv`` with a ``part`` column), ``study.toml``
+    and ``truth.json`` (the process errors and the exact deviations per part).
+    """
     from pathlib import Path
 
     from .export import write_text_atomic
@@ -401,15 +416,23 @@ def write_batch(
     out = Path(out_dir)
     rng = np.random.default_rng(seed)
     profile = demo_profile()
+    cut_length = sum(f.length for f in profile.features)  # mm of cut per part
+    wear_per_part = 0.0003  # radial, mm
+    base = ProcessErrors(
+        deflection=0.00008,
+        nose_radius_error=0.002,
+        wear_rate=wear_per_part / cut_length,
+        chuck_z=-100.0,
+    )
     truths, files = [], []
     for k in range(1, n_parts + 1):
         after = k >= tool_change_at
         parts_on_tool = k - (tool_change_at if after else 1)
         err = replace(
-            DEMO_ERRORS,
-            tool_offset_x=(0.006 if after else 0.012) + rng.normal(0.0, 0.0015),
-            tool_offset_z=-0.008 + rng.normal(0.0, 0.0015),
-            wear_start=3000.0 * parts_on_tool,  # mm of cut before this part on this tool edge
+            base,
+            tool_offset_x=(-0.004 if after else 0.002) + rng.normal(0.0, 0.0008),
+            tool_offset_z=(0.003 if after else -0.008) + rng.normal(0.0, 0.0008),
+            wear_start=cut_length * parts_on_tool,  # mm of cut on this edge before this part
         )
         truth = process_deviations(profile, err)
         sim = simulate_probe(
@@ -457,11 +480,18 @@ def write_batch(
             extra=DEMO_EXTRA,
         ),
     )
-    write_text_atomic(
-        out / "truth.json",
-        json.dumps({"seed": seed, "tool_change_at": tool_change_at, "parts": truths}, indent=2)
-        + "\n",
-    )
+    doc = {
+        "description": "Simulated production run of the demo shaft: exact per-part deviations "
+        "(mm, rad) and the process errors that made them.",
+        "seed": seed,
+        "tool_change_at": tool_change_at,
+        "tool_change_part": f"part{tool_change_at:02d}",
+        "wear_per_part_mm": wear_per_part,
+        "part_to_part_sd_mm": 0.0008,
+        "probe": {"ball_radius": 1.0, "repeatability": 0.0015},
+        "parts": truths,
+    }
+    write_text_atomic(out / "truth.json", json.dumps(doc, indent=2) + "\n")
     return truths
 
 

@@ -74,7 +74,9 @@ def _tangent_offset_kind(arc: Arc, nb) -> tuple[str, float]:
     (+1/-1 along its normal) of the arc centre; for an arc, external or internal."""
     c = np.array(arc.center)
     if isinstance(nb, Line):
-        s = float(np.dot(c - np.array(nb.p0), np.asarray(nb.normal)))
+        d = (np.array(nb.p1) - np.array(nb.p0)) / nb.length
+        normal = nb.side * np.array([d[1], -d[0]])  # nominal outward normal, NumPy (static)
+        s = float(np.dot(c - np.array(nb.p0), normal))
         return "line", 1.0 if s > 0 else -1.0
     d = float(np.linalg.norm(c - np.array(nb.center)))
     ext, inn = nb.radius + arc.radius, abs(nb.radius - arc.radius)

@@ -73,6 +73,11 @@ class FitSettings:
     min_points_arc: int = 4
     fix: tuple[str, ...] = ()
     free_transform: tuple[str, ...] = ()
+    likelihood: str = "gaussian"
+    nu: float = 4.0
+    bayes_steps: int = 6000
+    bayes_walkers: int | None = None
+    bayes_ensembles: int = 4
 
 
 @dataclass(frozen=True)
@@ -100,6 +105,10 @@ class Study:
     fit: FitSettings
     compensation: CompensationSettings
     sections: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    decision: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    capability: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    offsets: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    errspec: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
 
     def __repr__(self) -> str:
         return (
@@ -298,6 +307,144 @@ def _files(r: _Reader, tree: dict, base: Path) -> tuple[tuple[Path, ...], Path |
     return tuple(paths), (base / program if program else None)
 
 
+# Keys of the job sections read by piecs_bayes.decisions (see docs/formats.md):
+# (kind, bounds) with kind "length" (converted to mm), "number", "int", "bool",
+# "choice" (bounds = options), "ids" (feature ids of the profile); bounds are
+# (low, high, low_open, high_open), None = unbounded. Defaults live where the
+# settings are used (DecisionSettings, OffsetSettings, decisions.py).
+_GE0 = (0.0, None, False, False)
+_GT0 = (0.0, None, True, False)
+_GAIN = (0.0, 1.0, True, False)
+_JOB_KEYS: dict[str, dict[str, tuple]] = {
+    "decision": {
+        "characteristic": ("choice", ("worst", "mid", "start", "end")),
+        "run_index": ("int", (1, None, False, False)),
+        "null_band": ("length", _GE0),
+        "feedback_gain": ("number", _GAIN),
+        "loss_k": ("per_mm2", _GT0),
+        "adjustment_cost": ("number", _GE0),
+        "out_of_tolerance_cost": ("number", _GE0),
+        "adjustment_sd": ("length", _GE0),
+        "process_sd": ("length", _GE0),
+        "prior_sd": ("length", _GT0),
+        "max_correction": ("length", _GT0),
+        "p_significant": ("number", (0.5, 1.0, True, True)),
+        "coverage_factor": ("number", _GT0),
+        "guard_band_factor": ("number", _GE0),
+        "parts_per_decision": ("int", (1, None, False, False)),
+        "max_points_factor": ("number", (1.0, None, False, False)),
+        "require_significance": ("bool", None),
+    },
+    "capability": {
+        "characteristic": ("choice", ("mid", "start", "end")),
+        "confidence": ("number", (0.0, 1.0, True, True)),
+        "threshold": ("number", _GT0),
+        "sigma_method": ("choice", ("auto", "mr", "overall")),
+        "subtract_gauge": ("bool", None),
+        "gain": ("number", (0.0, 1.0, False, False)),
+        "n_draws": ("int", (1000, None, False, False)),
+        "run_length": ("int", (2, None, False, False)),
+        "trend_length": ("int", (3, None, False, False)),
+    },
+    "offsets": {
+        "tool": ("int", (1, None, False, False)),
+        "x_mode": ("choice", ("diameter", "radius")),
+        "null_band": ("length", _GE0),
+        "feedback_gain": ("number", _GAIN),
+        "upper_limit": ("length", _GT0),
+        "k_significance": ("number", _GE0),
+        "decimals": ("int", (1, 6, False, False)),
+        "nose_radius": ("choice", ("auto", "always", "off")),
+        "current_x": ("length", None),
+        "current_z": ("length", None),
+        "current_r": ("length", _GE0),
+        "x_features": ("ids", None),
+        "z_features": ("ids", None),
+    },
+    "errspec": {
+        "comp_type": ("int", (0, 1, False, False)),
+        "decimals": ("int", (1, 12, False, False)),
+        "points_per_feature": ("int", (2, 256, False, False)),
+        "machine_units": ("choice", ("mm", "inch")),
+    },
+}
+
+
+def _bounds_text(b) -> str:
+    lo, hi, lo_open, hi_open = b
+    if hi is None:
+        return f"{'>' if lo_open else '>='} {lo:g}"
+    if lo is None:
+        return f"{'<' if hi_open else '<='} {hi:g}"
+    return f"in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+
+
+def _in_bounds(v, b) -> bool:
+    lo, hi, lo_open, hi_open = b
+    if lo is not None and (v <= lo if lo_open else v < lo):
+        return False
+    return not (hi is not None and (v >= hi if hi_open else v > hi))
+
+
+def _job_section(r: _Reader, tree: dict, name: str, scale: float, profile: Profile) -> dict:
+    """Validate one of the job sections (`[decision]`, `[capability]`, `[offsets]`,
+    `[errspec]`): known keys only, each of the right type and range; lengths in mm."""
+    sec = r.table(tree, name, "")
+    spec = _JOB_KEYS[name]
+    out: dict[str, Any] = {}
+    for key, val in sec.items():
+        path = f"{name}.{key}"
+        if key not in spec:
+            raise r.error(
+                path, f"unknown key {key!r}; expected one of {', '.join(spec)}", value=val
+            )
+        kind, bounds = spec[key]
+        if kind == "choice":
+            if val not in bounds:
+                raise r.error(
+                    path,
+                    f"unknown value {val!r}; expected one of {', '.join(map(repr, bounds))}",
+                    value=val,
+                )
+            out[key] = val
+            continue
+        if kind == "bool":
+            if not isinstance(val, bool):
+                raise r.error(path, f"expected true or false, got {val!r}", value=val)
+            out[key] = val
+            continue
+        if kind == "ids":
+            if not isinstance(val, list) or not all(isinstance(v, str) for v in val):
+                raise r.error(path, f"expected a list of feature ids, got {val!r}", value=val)
+            for v in val:
+                if v not in profile.ids:
+                    raise r.error(
+                        path,
+                        f"unknown feature id {v!r}; the profile has {', '.join(profile.ids)}",
+                        feature=v,
+                        value=v,
+                    )
+            out[key] = tuple(val)
+            continue
+        if kind == "int":
+            if isinstance(val, bool) or not isinstance(val, int):
+                raise r.error(path, f"expected an integer, got {val!r}", value=val)
+        elif isinstance(val, bool) or not isinstance(val, (int, float)):
+            raise r.error(path, f"expected a number, got {val!r}", value=val)
+        elif not math.isfinite(val):
+            raise r.error(path, f"expected a finite number, got {val!r}", value=val)
+        if bounds is not None and not _in_bounds(val, bounds):
+            raise r.error(path, f"expected a number {_bounds_text(bounds)}, got {val!r}", value=val)
+        if kind == "length":
+            val = float(val) * scale
+        elif kind == "per_mm2":
+            val = float(val) / scale**2
+        elif kind == "number":
+            val = float(val)
+        out[key] = val
+    return out
+
+
 def load_study(path) -> Study:
     """Read and validate a study file.
 
@@ -419,7 +566,10 @@ def load_study(path) -> Study:
         * scale,
     )
     probe_files, program = _files(r, study, path.parent)
-    known = {"study", "profile", "probe", "machine", "uncertainty", "fit", "compensation"}
+    job = {
+        name: MappingProxyType(_job_section(r, tree, name, scale, profile)) for name in _JOB_KEYS
+    }
+    known = {"study", "profile", "probe", "machine", "uncertainty", "fit", "compensation", *job}
     extra = {k: v for k, v in tree.items() if k not in known}
     return Study(
         path=path,
@@ -434,4 +584,5 @@ def load_study(path) -> Study:
         fit=fit,
         compensation=comp,
         sections=MappingProxyType(extra),
+        **job,
     )

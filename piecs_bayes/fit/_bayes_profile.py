@@ -1,0 +1,307 @@
+"""Bayesian least squares of a whole profile with the study's error sources.
+
+Parameters: every feature's deviation (flat priors: the data decide) and one
+nuisance parameter per declared uncertainty source, each with its prior:
+
+| source | role in the model |
+|---|---|
+| ``ball_radius`` | error of the calibrated ball radius: the ball centre is ``rb + d`` off the surface |
+| ``pretravel`` | trigger late along the approach direction: centre displaced by ``d * approach`` |
+| ``x_centre``, ``z_offset`` | errors of the work offsets (added to the study's transform) |
+| ``scale_x``, ``scale_z`` | axis scale errors |
+| ``rotation`` | small rotation of the probe frame |
+| ``thermal`` | a common expansion error, added to both scales |
+| ``repeatability`` | the probe sigma itself, estimated with its prior (else known) |
+
+Likelihood: Gaussian, or Student-t (``nu`` degrees of freedom) as the robust
+Bayesian option, of the ball-centre residuals. The log posterior is one JAX
+function, jitted and vectorised over walkers, sampled with emcee from walkers
+started around the robust least-squares optimum.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import MachineTransform, Profile, machine_to_part
+from ._bayes import Posterior, gaussian_loglik, sample_posterior, student_t_loglik
+from ._priors import prior_from_spec
+
+__all__ = ["BayesProfileFit", "profile_log_posterior", "fit_profile_bayes", "NUISANCE_SOURCES"]
+
+#: Sources that enter the model as a nuisance parameter (``repeatability`` is sigma).
+NUISANCE_SOURCES = (
+    "ball_radius",
+    "pretravel",
+    "x_centre",
+    "z_offset",
+    "scale_x",
+    "scale_z",
+    "rotation",
+    "thermal",
+)
+_TRANSFORM_INDEX = {"x_centre": 0, "z_offset": 1, "scale_x": 2, "scale_z": 3, "rotation": 4}
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where each block sits in the flat parameter vector."""
+
+    features: tuple  # ((feature, slice into theta), ...)
+    nuisance: tuple  # ((name, index), ...)
+    sigma_index: int | None
+    names: tuple
+
+
+def _layout(profile: Profile, measured: tuple[str, ...], sources: dict) -> _Layout:
+    names, feats, i = [], [], 0
+    for f in profile.features:
+        if f.id not in measured:
+            continue
+        feats.append((f, slice(i, i + f.nparams)))
+        names += [f"{f.id}.{p}" for p in f.param_names]
+        i += f.nparams
+    nuis = []
+    for name in NUISANCE_SOURCES:
+        if name in sources:
+            nuis.append((name, i))
+            names.append(name)
+            i += 1
+    sigma_index = None
+    if "repeatability" in sources:
+        sigma_index = i
+        names.append("sigma")
+        i += 1
+    return _Layout(tuple(feats), tuple(nuis), sigma_index, tuple(names))
+
+
+def profile_log_posterior(
+    profile: Profile,
+    feature_ids,
+    *,
+    sources: dict,
+    ball_radius: float,
+    transform: MachineTransform,
+    sigma: float,
+    likelihood: str = "gaussian",
+    nu: float = 4.0,
+    approach=None,
+    file: str | None = None,
+):
+    """Build ``(log_prob(theta, args), layout, priors)`` for a profile.
+
+    ``args`` is ``(machine_points,)``, the ball centres in machine coordinates
+    (radius X) in the order of ``feature_ids``. ``sources`` maps source names
+    to prior specs (the study's ``[uncertainty]`` tables).
+    """
+    if likelihood not in ("gaussian", "student_t"):
+        raise InputError(
+            f"unknown likelihood {likelihood!r}; expected 'gaussian' or 'student_t'",
+            value=likelihood,
+        )
+    feature_ids = np.asarray(feature_ids).astype(str)
+    measured = tuple(f.id for f in profile.features if np.any(feature_ids == f.id))
+    priors = {name: prior_from_spec(name, dict(spec), file=file) for name, spec in sources.items()}
+    lay = _layout(profile, measured, sources)
+    groups = [(f, sl, jnp.asarray(np.flatnonzero(feature_ids == f.id))) for f, sl in lay.features]
+    base = transform.as_array()
+    appr = None if approach is None else jnp.asarray(approach)
+
+    def log_prob(theta, args):
+        (points,) = args
+        t = base
+        rb = ball_radius
+        centres = points
+        lp = 0.0
+        for name, k in lay.nuisance:
+            v = theta[k]
+            lp = lp + priors[name].log_pdf(v)
+            if name in _TRANSFORM_INDEX:
+                t = t.at[_TRANSFORM_INDEX[name]].add(v)
+            elif name == "thermal":
+                t = t.at[2].add(v).at[3].add(v)
+            elif name == "ball_radius":
+                rb = rb + v
+        pretravel = dict(lay.nuisance).get("pretravel")
+        part = machine_to_part(centres, t)
+        res = []
+        for f, sl, idx in groups:
+            pts = part[idx]
+            dev = theta[sl]
+            if pretravel is not None:
+                # the trigger comes late, along the approach (into the material)
+                a = appr[idx] if appr is not None else -f.outward_normal(pts, dev)
+                pts = pts - theta[pretravel] * a
+            res.append(f.signed_distance(pts, dev) - rb)
+        r = jnp.concatenate(res)
+        if lay.sigma_index is not None:
+            s = theta[lay.sigma_index]
+            lp = lp + priors["repeatability"].log_pdf(s)
+        else:
+            s = sigma
+        ll = gaussian_loglik(r, s) if likelihood == "gaussian" else student_t_loglik(r, s, nu)
+        return jnp.where(jnp.isfinite(lp), lp + ll, -jnp.inf)
+
+    return log_prob, lay, priors
+
+
+@dataclass(frozen=True, eq=False)
+class BayesProfileFit:
+    """Posterior of a profile's deviations and nuisance parameters.
+
+    ``posterior`` is the sampler's :class:`Posterior` (flat samples over
+    ``names``); per feature, :meth:`samples` gives its deviation draws and
+    ``deviations``/``covariances`` the posterior means and covariances.
+    """
+
+    profile: Profile
+    posterior: Posterior
+    layout: _Layout
+    likelihood: str
+    part: str | None = None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.layout.names
+
+    def samples(self, feature_id: str) -> np.ndarray:
+        for f, sl in self.layout.features:
+            if f.id == feature_id:
+                return np.asarray(self.posterior.samples)[:, sl]
+        raise KeyError(f"feature {feature_id!r} was not measured")
+
+    @property
+    def deviation_samples(self) -> dict[str, np.ndarray]:
+        return {f.id: self.samples(f.id) for f, _ in self.layout.features}
+
+    @property
+    def deviations(self) -> dict[str, np.ndarray]:
+        return {k: v.mean(axis=0) for k, v in self.deviation_samples.items()}
+
+    @property
+    def covariances(self) -> dict[str, np.ndarray]:
+        return {
+            k: np.atleast_2d(np.cov(v, rowvar=False)) for k, v in self.deviation_samples.items()
+        }
+
+    @property
+    def nuisance(self) -> dict[str, dict]:
+        out = {}
+        s = np.asarray(self.posterior.samples)
+        idx = [(n, k) for n, k in self.layout.nuisance]
+        if self.layout.sigma_index is not None:
+            idx.append(("sigma", self.layout.sigma_index))
+        for name, k in idx:
+            lo, hi = np.quantile(s[:, k], [0.025, 0.975])
+            out[name] = {
+                "mean": float(s[:, k].mean()),
+                "sd": float(s[:, k].std(ddof=1)),
+                "q2.5": float(lo),
+                "q97.5": float(hi),
+            }
+        return out
+
+    def rows(self) -> list[dict]:
+        """One row per parameter: posterior mean, sd and 95 % interval."""
+        s = np.asarray(self.posterior.samples)
+        lo, hi = np.quantile(s, [0.025, 0.975], axis=0)
+        return [
+            {
+                "part": self.part or "",
+                "parameter": n,
+                "mean": float(s[:, i].mean()),
+                "sd": float(s[:, i].std(ddof=1)),
+                "q2.5": float(lo[i]),
+                "q97.5": float(hi[i]),
+            }
+            for i, n in enumerate(self.names)
+        ]
+
+    def __repr__(self) -> str:
+        return f"BayesProfileFit({self.likelihood}, {len(self.names)} parameters, part={self.part!r})\n{self.posterior!r}"
+
+
+def fit_profile_bayes(
+    profile: Profile,
+    feature_ids,
+    machine_points,
+    *,
+    start: dict,
+    start_cov: dict | None = None,
+    sources: dict,
+    ball_radius: float,
+    transform: MachineTransform = MachineTransform(),
+    sigma: float,
+    likelihood: str = "gaussian",
+    nu: float = 4.0,
+    approach=None,
+    nsteps: int = 3000,
+    nwalkers: int | None = None,
+    n_ensembles: int = 4,
+    seed: int = 0,
+    progress: bool = True,
+    on_fail: str = "warn",
+    part: str | None = None,
+    file: str | None = None,
+) -> BayesProfileFit:
+    """Sample the posterior of a profile's deviations and nuisance parameters.
+
+    **Arguments:**
+
+    - `feature_ids`, `machine_points`: per trigger, feature and ball centre
+      (machine frame, radius X, mm); outliers need not be removed when
+      ``likelihood="student_t"``.
+    - `start`, `start_cov`: least-squares deviations and covariances per
+      feature id: the walkers start in a ball around them.
+    - `sources`: the study's uncertainty sources (prior specs).
+    - `sigma`: the known probe repeatability (used unless ``repeatability`` is
+      a source, in which case it is estimated with that prior).
+    - `nsteps`, `nwalkers`, `n_ensembles`, `seed`, `progress`, `on_fail`: sampler
+      settings (see :func:`sample_posterior`).
+
+    **Returns:** a :class:`BayesProfileFit`.
+    """
+    log_prob, lay, priors = profile_log_posterior(
+        profile,
+        feature_ids,
+        sources=sources,
+        ball_radius=ball_radius,
+        transform=transform,
+        sigma=sigma,
+        likelihood=likelihood,
+        nu=nu,
+        approach=approach,
+        file=file,
+    )
+    dim = len(lay.names)
+    x0 = np.zeros(dim)
+    var0 = np.zeros(dim)
+    for f, sl in lay.features:
+        x0[sl] = np.asarray(start[f.id])
+        c = None if start_cov is None else start_cov.get(f.id)
+        var0[sl] = np.diag(c) if c is not None else 1e-6
+    for name, k in lay.nuisance:
+        x0[k] = priors[name].mean
+        var0[k] = priors[name].sd ** 2
+    if lay.sigma_index is not None:
+        x0[lay.sigma_index] = sigma
+        var0[lay.sigma_index] = (0.1 * sigma) ** 2
+    var0 = np.where(var0 > 0, var0, 1e-12)
+    post = sample_posterior(
+        log_prob,
+        x0,
+        names=lay.names,
+        cov0=None,
+        args=(jnp.asarray(machine_points),),
+        nwalkers=nwalkers,
+        nsteps=nsteps,
+        seed=seed,
+        progress=progress,
+        n_ensembles=n_ensembles,
+        on_fail=on_fail,
+    )
+    return BayesProfileFit(profile, post, lay, likelihood, part)

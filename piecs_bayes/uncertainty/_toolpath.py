@@ -1,0 +1,332 @@
+"""Uncertainty of the adjusted tool path, two ways that agree where linearisation holds.
+
+- **Linearised (GUM, JCGM 100)**: the whole chain *probe points and error
+  sources -> feature fits -> mirrored deviations -> adjusted vertices and path*
+  is one JAX function; its Jacobian (through the fits by the implicit function
+  theorem) times the input covariance gives every output's covariance, and the
+  split of the input covariance by source gives the uncertainty budget.
+- **Monte Carlo (JCGM 101)**: posterior draws of the deviations (Bayesian fit,
+  nuisance parameters included) pushed through the same path function.
+
+The path is described by its vertices and by its **normal offset** from the
+nominal contour at grid points along every feature (positive outward): the
+bands are pointwise and simultaneous bands of that offset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..compensate._mirror import adjusted_geometry
+from ..errors import InputError
+from ..geometry import Line, MachineTransform, Profile, machine_to_part
+from ._bands import Bands, bands_from_samples, bands_linear
+from ._propagate import uncertainty_budget
+
+__all__ = [
+    "PathGrid",
+    "path_grid",
+    "path_function",
+    "ToolpathUncertainty",
+    "linearised_toolpath",
+    "monte_carlo_toolpath",
+]
+
+_TRANSFORM_INDEX = {"x_centre": 0, "z_offset": 1, "scale_x": 2, "scale_z": 3, "rotation": 4}
+LINEARISED_SOURCES = (
+    "ball_radius",
+    "pretravel",
+    "x_centre",
+    "z_offset",
+    "scale_x",
+    "scale_z",
+    "rotation",
+    "thermal",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class PathGrid:
+    """Grid points along the nominal contour: feature index, fraction, point, outward normal."""
+
+    feature: np.ndarray
+    t: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def path_grid(profile: Profile, per_feature: int = 21) -> PathGrid:
+    """``per_feature`` points on every feature (ends included)."""
+    fi, ts, pts, nrm = [], [], [], []
+    for i, f in enumerate(profile.features):
+        t = np.linspace(0.0, 1.0, per_feature)
+        p = np.asarray(f.point_at(t))
+        fi.append(np.full(per_feature, i))
+        ts.append(t)
+        pts.append(p)
+        nrm.append(np.asarray(f.outward_normal(p)))
+    return PathGrid(np.concatenate(fi), np.concatenate(ts), np.vstack(pts), np.vstack(nrm))
+
+
+def path_function(profile: Profile, grid: PathGrid, gain=1.0):
+    """``f(devs) -> (vertices (n+1, 2), offsets (m,))`` for deviations ``devs`` (a
+    tuple, one vector per feature, profile order): the adjusted path's vertices
+    and its normal offset from nominal at the grid points."""
+    gains = [gain.get(f.id, 1.0) if isinstance(gain, dict) else gain for f in profile.features]
+    feats = profile.features
+    idx = [np.flatnonzero(grid.feature == i) for i in range(len(feats))]
+
+    def f(devs):
+        dev_c = tuple(-g * jnp.asarray(d) for g, d in zip(gains, devs, strict=True))
+        verts, centres, radii = adjusted_geometry(profile, dev_c)
+        offs = []
+        for i, feat in enumerate(feats):
+            g = jnp.asarray(grid.points[idx[i]])
+            if isinstance(feat, Line):
+                d = feat.signed_distance(g, dev_c[i])
+            else:
+                v = g - centres[i]
+                d = feat.sense * (jnp.sqrt(jnp.sum(v * v, axis=-1)) - radii[i])
+            offs.append(-d)
+        return verts, jnp.concatenate(offs)
+
+    return f
+
+
+@dataclass(frozen=True, eq=False)
+class ToolpathUncertainty:
+    """Uncertainty of the adjusted tool path.
+
+    ``vertex_cov`` ``(n+1, 2, 2)`` per vertex (x, z); ``offset``/``offset_sd``
+    the normal offset of the adjusted path from nominal and its standard
+    uncertainty at the grid points; ``bands`` pointwise and simultaneous 95 %
+    bands of the offset; ``budget`` (linearised only) the variance contributed
+    by each source to each vertex coordinate (``vertex_budget`` ``{source: (n+1, 2)}``)
+    and to each grid offset (``offset_budget``); ``deviation_cov`` per feature.
+    """
+
+    method: str
+    grid: PathGrid
+    vertices: np.ndarray
+    vertex_cov: np.ndarray
+    offset: np.ndarray
+    offset_sd: np.ndarray
+    bands: Bands
+    deviations: dict
+    deviation_cov: dict
+    vertex_budget: dict | None = None
+    offset_budget: dict | None = None
+    deviation_budget: dict | None = None
+
+    @property
+    def vertex_sd(self) -> np.ndarray:
+        return np.sqrt(np.stack([self.vertex_cov[:, 0, 0], self.vertex_cov[:, 1, 1]], axis=1))
+
+    def __repr__(self) -> str:
+        sd = self.vertex_sd
+        return (
+            f"ToolpathUncertainty({self.method}, {len(self.vertices)} vertices, "
+            f"max u(vertex) = {sd.max() * 1000:.2f} um, simultaneous k = {self.bands.crit_simultaneous:.2f}, "
+            f"max band half-width {np.max(self.bands.crit_simultaneous * self.offset_sd) * 1000:.2f} um)"
+        )
+
+
+def _split(profile, flat):
+    out, i = [], 0
+    for f in profile.features:
+        out.append(flat[i : i + f.nparams])
+        i += f.nparams
+    return tuple(out)
+
+
+def linearised_toolpath(
+    profile: Profile,
+    feature_ids,
+    machine_points,
+    deviations: dict,
+    *,
+    ball_radius: float,
+    sigma: float,
+    transform: MachineTransform = MachineTransform(),
+    source_sd: dict | None = None,
+    approach=None,
+    gain=1.0,
+    grid: PathGrid | None = None,
+    p: float = 0.95,
+) -> ToolpathUncertainty:
+    """GUM propagation from probe points and error sources to the adjusted path.
+
+    The sensitivities of the fitted deviations to every input come from the
+    implicit function theorem at the least-squares solution,
+    $\\partial d/\\partial x = -(J_d^T J_d)^{-1} J_d^T J_x$ with $J_d$, $J_x$ the
+    Jacobians (JAX autodiff) of the residuals with respect to the deviations and
+    to the inputs; the path's sensitivities follow by the chain rule.
+
+    **Arguments:**
+
+    - `feature_ids`, `machine_points`: the inlier triggers (outliers removed),
+      ball centres in machine coordinates (radius X, mm).
+    - `deviations`: the fitted deviations per feature id (the solution).
+    - `sigma`: probe repeatability: each coordinate of each point has variance
+      ``sigma**2`` (the "repeatability" source).
+    - `source_sd`: standard uncertainty of each other source (names in
+      ``LINEARISED_SOURCES``), e.g. the sd of the study's priors.
+    - `gain`: compensation gain(s); `grid`: where the offset is evaluated.
+
+    **Returns:** a :class:`ToolpathUncertainty` with the budget.
+    """
+    source_sd = dict(source_sd or {})
+    for name in source_sd:
+        if name not in LINEARISED_SOURCES:
+            raise InputError(
+                f"unknown uncertainty source {name!r}; expected one of {', '.join(LINEARISED_SOURCES)}"
+            )
+    feature_ids = np.asarray(feature_ids).astype(str)
+    pts = np.asarray(machine_points, dtype=float)
+    grid = grid or path_grid(profile)
+    names = list(source_sd)
+    base = transform.as_array()
+    appr = None if approach is None else jnp.asarray(approach)
+    feats = profile.features
+    index = [np.flatnonzero(feature_ids == f.id) for f in feats]
+    n_pts = pts.size
+    dev0 = jnp.concatenate(
+        [jnp.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float) for f in feats]
+    )
+
+    def residuals(devs_flat, x):
+        points = x[:n_pts].reshape(-1, 2)
+        deltas = dict(zip(names, x[n_pts:], strict=True))
+        t = base
+        for name, v in deltas.items():
+            if name in _TRANSFORM_INDEX:
+                t = t.at[_TRANSFORM_INDEX[name]].add(v)
+            elif name == "thermal":
+                t = t.at[2].add(v).at[3].add(v)
+        rb = ball_radius + deltas.get("ball_radius", 0.0)
+        part = machine_to_part(points, t)
+        devs = _split(profile, devs_flat)
+        out = []
+        for f, idx, d in zip(feats, index, devs, strict=True):
+            if idx.size == 0:
+                continue
+            q = part[idx]
+            if "pretravel" in deltas:
+                a = appr[idx] if appr is not None else -f.outward_normal(q, d)
+                q = q - deltas["pretravel"] * a
+            out.append(f.signed_distance(q, d) - rb)
+        return jnp.concatenate(out)
+
+    x0 = jnp.concatenate([jnp.asarray(pts.ravel()), jnp.zeros(len(names))])
+    j_d = np.asarray(jax.jacfwd(residuals, argnums=0)(dev0, x0))
+    j_x = np.asarray(jax.jacfwd(residuals, argnums=1)(dev0, x0))
+    measured = np.concatenate(
+        [np.full(f.nparams, idx.size > 0) for f, idx in zip(feats, index, strict=True)]
+    )
+    d_dx = np.zeros((dev0.size, x0.size))
+    jm = j_d[:, measured]
+    d_dx[measured] = -np.linalg.solve(jm.T @ jm, jm.T @ j_x)
+    path_f = path_function(profile, grid, gain)
+
+    def path_flat(devs_flat):
+        verts, offs = path_f(_split(profile, devs_flat))
+        return jnp.concatenate([verts.ravel(), offs])
+
+    y_path = np.asarray(path_flat(dev0))
+    jac = np.vstack([d_dx, np.asarray(jax.jacfwd(path_flat)(dev0)) @ d_dx])
+    y = np.concatenate([np.asarray(dev0), y_path])
+    var_x = np.concatenate([np.full(n_pts, sigma**2), np.array([source_sd[n] ** 2 for n in names])])
+    cov_y = (jac * var_x) @ jac.T
+    n_dev = dev0.size
+    n_v = 2 * (len(profile) + 1)
+    sl_dev, sl_v, sl_o = slice(0, n_dev), slice(n_dev, n_dev + n_v), slice(n_dev + n_v, None)
+    sources = {"repeatability": (np.arange(n_pts), np.full(n_pts, sigma**2))}
+    for k, name in enumerate(names):
+        sources[name] = (np.array([n_pts + k]), np.array([source_sd[name] ** 2]))
+    budget = uncertainty_budget(jac, sources)
+    vertices = y[sl_v].reshape(-1, 2)
+    cv = cov_y[sl_v, sl_v]
+    vcov = np.array([cv[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] for j in range(len(vertices))])
+    offset = y[sl_o]
+    ocov = cov_y[sl_o, sl_o]
+    bands = bands_linear(offset, ocov, p=p)
+    dcov = cov_y[sl_dev, sl_dev]
+    dev_cov, dev_val, i = {}, {}, 0
+    for f in feats:
+        dev_cov[f.id] = dcov[i : i + f.nparams, i : i + f.nparams]
+        dev_val[f.id] = y[i : i + f.nparams]
+        i += f.nparams
+    return ToolpathUncertainty(
+        method="linearised (GUM)",
+        grid=grid,
+        vertices=vertices,
+        vertex_cov=vcov,
+        offset=offset,
+        offset_sd=np.sqrt(np.clip(np.diag(ocov), 0.0, None)),
+        bands=bands,
+        deviations=dev_val,
+        deviation_cov=dev_cov,
+        vertex_budget={k: v[sl_v].reshape(-1, 2) for k, v in budget.items()},
+        offset_budget={k: v[sl_o] for k, v in budget.items()},
+        deviation_budget={k: v[sl_dev] for k, v in budget.items()},
+    )
+
+
+def monte_carlo_toolpath(
+    profile: Profile,
+    deviation_samples: dict,
+    *,
+    gain=1.0,
+    grid: PathGrid | None = None,
+    p: float = 0.95,
+    max_draws: int = 20_000,
+    seed: int = 0,
+) -> ToolpathUncertainty:
+    """JCGM 101 propagation of posterior deviation draws to the adjusted path.
+
+    **Arguments:**
+
+    - `deviation_samples`: ``{feature_id: (M, nparams)}`` draws (features
+      absent are as drawn); e.g. ``BayesProfileFit.deviation_samples``.
+    - `max_draws`: thin to at most this many draws (seeded).
+    """
+    grid = grid or path_grid(profile)
+    m = len(next(iter(deviation_samples.values())))
+    rng = np.random.default_rng(seed)
+    take = np.sort(rng.choice(m, max_draws, replace=False)) if m > max_draws else np.arange(m)
+    stacked = tuple(
+        jnp.asarray(deviation_samples[f.id][take])
+        if f.id in deviation_samples
+        else jnp.zeros((len(take), f.nparams))
+        for f in profile.features
+    )
+    path_f = path_function(profile, grid, gain)
+    verts, offs = jax.jit(jax.vmap(path_f))(stacked)
+    verts, offs = np.asarray(verts), np.asarray(offs)
+    vcov = np.array([np.cov(verts[:, j, :], rowvar=False) for j in range(verts.shape[1])])
+    means = {
+        f.id: np.asarray(s).mean(axis=0) for f, s in zip(profile.features, stacked, strict=True)
+    }
+    center_v, center_o = path_f(tuple(jnp.asarray(means[f.id]) for f in profile.features))
+    bands = bands_from_samples(offs, center=np.asarray(center_o), p=p)
+    return ToolpathUncertainty(
+        method="Monte Carlo (JCGM 101)",
+        grid=grid,
+        vertices=np.asarray(center_v),
+        vertex_cov=vcov,
+        offset=np.asarray(center_o),
+        offset_sd=offs.std(axis=0, ddof=1),
+        bands=bands,
+        deviations=means,
+        deviation_cov={
+            f.id: np.atleast_2d(np.cov(np.asarray(s), rowvar=False))
+            for f, s in zip(profile.features, stacked, strict=True)
+        },
+    )
