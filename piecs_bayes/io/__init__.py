@@ -1,5 +1,26 @@
 """Read and validate what the user brings: study files, probe CSVs, part programs."""
 
+from ._gcode import GcodeText as GcodeText
+from ._gcode import SourceLine as SourceLine
+from ._gcode import Word as Word
+from ._gcode import edit_line as edit_line
+from ._gcode import format_number as format_number
+from ._gcode import lex_gcode as lex_gcode
+from ._gcode_modal import CompEvent as CompEvent
+from ._gcode_modal import CompSetting as CompSetting
+from ._gcode_modal import GcodeProgram as GcodeProgram
+from ._gcode_modal import LineState as LineState
+from ._gcode_modal import Motion as Motion
+from ._gcode_modal import parse_gcode as parse_gcode
+from ._gcode_modal import read_gcode as read_gcode
+from ._gcode_rs274 import CanonMove as CanonMove
+from ._gcode_rs274 import Rs274Result as Rs274Result
+from ._gcode_rs274 import rs274_path as rs274_path
+from ._gcode_rs274 import run_rs274 as run_rs274
+from ._gcode_tools import ToolEntry as ToolEntry
+from ._gcode_tools import parse_tool_table as parse_tool_table
+from ._gcode_tools import read_tool_table as read_tool_table
+from ._gcode_write import write_path_program as write_path_program
 from ._probe import ProbeData as ProbeData
 from ._probe import read_probe_csv as read_probe_csv
 from ._study import CompensationSettings as CompensationSettings

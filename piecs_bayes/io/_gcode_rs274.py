@@ -1,0 +1,128 @@
+"""LinuxCNC's standalone interpreter ``rs274`` as a reference: run it, read its canon.
+
+``rs274`` (Debian package ``linuxcnc-uspace``) interprets a program and prints
+the canonical machining calls::
+
+    rs274 -t tool.tbl -g program.ngc canon.txt
+
+``-g`` runs in batch mode; ``-t`` gives the tool table (needed for G41/G42,
+and without it an interpreter error does not reach the exit status). No INI
+file is needed. Two facts about this standalone build matter here:
+
+- tool-table lengths are read as **inches** (a ``D0.02`` tool has a 0.01 in =
+  0.254 mm nose radius in G20 and G21 programs alike);
+- canonical coordinates are printed in the program's current units
+  (``USE_LENGTH_UNITS``) with 4 decimals, X as a radius; in the XZ plane
+  ``ARC_FEED(z_end, x_end, z_centre, x_centre, rotation, ...)`` with
+  rotation +1 counter-clockwise in the (z right, x up) drawing frame (G3).
+
+:func:`run_rs274` converts everything to mm, radius X, ``(x, z)`` points.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["CanonMove", "Rs274Result", "rs274_path", "run_rs274"]
+
+_CANON = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_0-9]+)\((.*)\)\s*$")
+
+
+@dataclass(frozen=True)
+class CanonMove:
+    """A canonical move: ``kind`` is ``"rapid"``, ``"feed"`` or ``"arc"`` (mm, radius X)."""
+
+    kind: str
+    end: tuple[float, float]
+    center: tuple[float, float] | None = None
+    rotation: int = 0
+
+
+@dataclass(frozen=True)
+class Rs274Result:
+    """Moves, the interpreter's error text (None when it ran to the end) and raw output."""
+
+    moves: tuple[CanonMove, ...]
+    error: str | None
+    returncode: int
+    output: str
+
+
+def rs274_path() -> str | None:
+    """Path of the ``rs274`` executable, or None when LinuxCNC is not installed."""
+    return shutil.which("rs274")
+
+
+def parse_canon(text: str) -> tuple[tuple[CanonMove, ...], list[str]]:
+    """Motion canon of ``rs274`` output (mm) and the lines that are not canon calls."""
+    moves: list[CanonMove] = []
+    other: list[str] = []
+    scale = 1.0
+    for raw in text.splitlines():
+        m = _CANON.match(raw)
+        if m is None:
+            if raw.strip() and raw.strip() != "executing":
+                other.append(raw.strip())
+            continue
+        name, args = m.group(1), m.group(2)
+        if name == "USE_LENGTH_UNITS":
+            scale = 25.4 if "INCHES" in args else 1.0
+            continue
+        if name not in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED"):
+            continue
+        vals = [float(v) for v in args.split(",")]
+        if name == "ARC_FEED":
+            z, x, cz, cx, rot = vals[:5]
+            moves.append(
+                CanonMove("arc", (x * scale, z * scale), (cx * scale, cz * scale), int(rot))
+            )
+        else:
+            x, _, z = vals[:3]
+            kind = "rapid" if name == "STRAIGHT_TRAVERSE" else "feed"
+            moves.append(CanonMove(kind, (x * scale, z * scale)))
+    return tuple(moves), other
+
+
+def run_rs274(program, *, tool_table=None, timeout: float = 60.0) -> Rs274Result:
+    """Run ``rs274 -g`` on a program file (or text) and return its canonical moves.
+
+    **Arguments:**
+
+    - `program`: a path, or the program text (a str holding a newline).
+    - `tool_table`: a path, or table text, in rs274's units (inches).
+    - `timeout`: seconds.
+
+    Raises FileNotFoundError when ``rs274`` is not installed.
+    """
+    exe = rs274_path()
+    if exe is None:
+        raise FileNotFoundError("rs274 (LinuxCNC, Debian package linuxcnc-uspace) is not installed")
+    with tempfile.TemporaryDirectory(prefix="piecs-rs274-") as tmp:
+        tmp = Path(tmp)
+        prog = _materialise(program, tmp / "program.ngc")
+        cmd = [exe]
+        if tool_table is not None:
+            cmd += ["-t", str(_materialise(tool_table, tmp / "tool.tbl"))]
+        out = tmp / "canon.txt"
+        cmd += ["-g", str(prog), str(out)]
+        proc = subprocess.run(
+            cmd, cwd=tmp, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL
+        )
+        canon = out.read_text() if out.exists() else ""
+    moves, other = parse_canon(canon)
+    messages = [ln.strip() for ln in (proc.stdout + "\n" + proc.stderr).splitlines()]
+    messages = [ln for ln in messages if ln and ln != "executing"] + other
+    error = "\n".join(messages) if (proc.returncode != 0 or messages) else None
+    return Rs274Result(moves, error, proc.returncode, canon + proc.stdout + proc.stderr)
+
+
+def _materialise(src, target: Path) -> Path:
+    if isinstance(src, Path) or "\n" not in str(src):
+        return Path(src).resolve()
+    target.write_text(str(src))
+    return target
