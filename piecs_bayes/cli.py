@@ -138,9 +138,32 @@ def _fit(args, console):
 
     study = load_study(args.study)
     console.step(f"read {study!r}")
-    fit = fit_study(study, method=args.method, part=args.part)
+    method = args.method or study.fit.method
+    fit = fit_study(study, method="robust" if method == "bayes" else method, part=args.part)
     console.step(f"fitted {len(fit.fits)} features ({fit.method})")
     return study, fit
+
+
+def _bayes(args, study, fit, console):
+    from .pipeline import bayes_study
+
+    console.step("sampling the posterior (emcee)")
+    bayes = bayes_study(study, fit, nsteps=args.steps, seed=args.seed, progress=not args.quiet)
+    post = bayes.posterior
+    console.step(
+        f"posterior: {len(bayes.names)} parameters, {'converged' if post.converged else 'NOT converged'}, "
+        f"{post.ess_per_second:.0f} effective samples/s"
+    )
+    return bayes
+
+
+def _write_bayes(out, study, bayes, console, written):
+    from .export import posterior_csv
+
+    _write(out, "posterior.csv", posterior_csv(bayes), study, console, written)
+    path = out / "posterior.nc"
+    bayes.posterior.to_netcdf(path)
+    written.append(path)
 
 
 def _write_fit(out, study, fit, console, written):
@@ -174,9 +197,39 @@ def cmd_fit(args, console) -> int:
     written: list[Path] = []
     _write_fit(out, study, fit, console, written)
     _print_fit(fit, console)
+    if (args.method or study.fit.method) == "bayes":
+        bayes = _bayes(args, study, fit, console)
+        _write_bayes(out, study, bayes, console, written)
+        console.say(bayes.posterior.summary())
     for p in written:
         console.say(f"wrote {p}")
     return 0
+
+
+def _write_bounds(out, study, fit, bayes, gain, console, written):
+    from .export import band_csv, bounds_csv, bounds_json, budget_csv
+    from .pipeline import toolpath_uncertainty
+
+    unc = toolpath_uncertainty(study, fit, bayes=bayes, gain=gain)
+    for key, tpu in unc.items():
+        if tpu is None:
+            continue
+        console.step(f"tool-path bounds: {tpu!r}")
+        suffix = "" if key == "linearised" else "_mc"
+        _write(out, f"toolpath_bounds{suffix}.csv", bounds_csv(tpu), study, console, written)
+        _write(
+            out, f"toolpath_band{suffix}.csv", band_csv(tpu, study.profile), study, console, written
+        )
+    _write(
+        out,
+        "uncertainty_budget.csv",
+        budget_csv(unc["linearised"], study.profile),
+        study,
+        console,
+        written,
+    )
+    _write(out, "toolpath_bounds.json", bounds_json(unc, study.profile), study, console, written)
+    return unc
 
 
 def cmd_compensate(args, console) -> int:
@@ -190,6 +243,12 @@ def cmd_compensate(args, console) -> int:
     written: list[Path] = []
     _write_fit(out, study, fit, console, written)
     _write(out, "toolpath.csv", path_csv(path), study, console, written)
+    bayes = None
+    if (args.method or study.fit.method) == "bayes":
+        bayes = _bayes(args, study, fit, console)
+        _write_bayes(out, study, bayes, console, written)
+    gain = study.compensation.gain if args.gain is None else args.gain
+    _write_bounds(out, study, fit, bayes, gain, console, written)
     for p in written:
         console.say(f"wrote {p}")
     return 0

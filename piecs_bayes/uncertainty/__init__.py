@@ -1,0 +1,15 @@
+from ._bands import Bands as Bands
+from ._bands import bands_from_samples as bands_from_samples
+from ._bands import bands_linear as bands_linear
+from ._propagate import AdaptiveMCResult as AdaptiveMCResult
+from ._propagate import adaptive_monte_carlo as adaptive_monte_carlo
+from ._propagate import coverage_interval as coverage_interval
+from ._propagate import propagate_linear as propagate_linear
+from ._propagate import propagate_mc as propagate_mc
+from ._propagate import uncertainty_budget as uncertainty_budget
+from ._toolpath import PathGrid as PathGrid
+from ._toolpath import ToolpathUncertainty as ToolpathUncertainty
+from ._toolpath import linearised_toolpath as linearised_toolpath
+from ._toolpath import monte_carlo_toolpath as monte_carlo_toolpath
+from ._toolpath import path_function as path_function
+from ._toolpath import path_grid as path_grid

@@ -1,0 +1,268 @@
+"""Pointwise and simultaneous confidence bands along a curve.
+
+For a curve $g(z)$ estimated at grid points $z_1 \\dots z_n$ with standard
+uncertainties $u(z_i)$, a band is $\\hat g(z_i) \\pm c_i\\, u(z_i)$:
+
+- **pointwise**: $c_i$ is the $p$ quantile of $|\\hat g(z_i) - g(z_i)|/u(z_i)$ at
+  each point alone ($\\approx 1.96$ for $p = 0.95$, $t_\\nu$ with an estimated
+  scale). It covers each point with probability $p$, but the *whole* curve
+  much less often;
+- **simultaneous** (max-t): one $c$, the $p$ quantile of
+  $\\max_i |\\hat g(z_i) - g(z_i)|/u(z_i)$, so the band holds the whole curve
+  with probability $p$ (about 2.7 for a 3-parameter profile on a fine grid).
+
+Two routes:
+
+- `bands_from_samples`: Monte Carlo draws of the curve values (posterior
+  samples pushed through the model, JCGM 101); the quantiles are empirical.
+- `bands_linear`: a linearised mean and covariance $U$ of the curve (GUM).
+  The standardised error is $N(0, R)$ with $R$ the correlation matrix of $U$
+  (multivariate $t_\\nu$ when `dof` is given). Its max-$|z|$ quantile is simulated
+  (`method="mc"`, or `"qmc"` with a scrambled Sobol sequence, through a
+  rank-$r$ factor of $R$ so a curve from $r$ parameters costs $r$ normals a
+  draw), or bounded by Scheffé's $\\sqrt{\\chi^2_{r,p}}$ ($\\sqrt{r F_{r,\\nu,p}}$)
+  (`method="scheffe"`, exact for the worst linear combination, so
+  conservative on any grid). Pass `factor=` ($U = L L^\\top$, e.g.
+  $G\\,\\mathrm{chol}(U_\\theta)$) instead of `cov=` to skip the eigen-decomposition.
+
+For a tool path, the curve values are the signed offsets normal to the path at
+the grid points; these functions only see numbers along a curve.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from scipy import stats
+from scipy.stats import qmc
+
+from ..errors import InputError
+
+__all__ = ["Bands", "bands_from_samples", "bands_linear"]
+
+
+def _frozen(a) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class Bands:
+    """Pointwise and simultaneous bands of probability `p` along a curve.
+
+    `center` and `sd` are the estimate and standard uncertainty at each point;
+    the bands are `center -/+ crit_pointwise * sd` (`crit_pointwise` has one
+    value per point) and `center -/+ crit_simultaneous * sd`.
+    `crit_simultaneous_se` is the Monte Carlo standard error of the simulated
+    critical value (0 when it is not simulated); `method` says how it was made.
+    """
+
+    center: np.ndarray
+    sd: np.ndarray
+    pointwise_lower: np.ndarray
+    pointwise_upper: np.ndarray
+    simultaneous_lower: np.ndarray
+    simultaneous_upper: np.ndarray
+    crit_pointwise: np.ndarray
+    crit_simultaneous: float
+    crit_simultaneous_se: float
+    p: float
+    method: str
+    n_draws: int
+
+    def contains(self, curve, kind: Literal["pointwise", "simultaneous"] = "simultaneous"):
+        """Boolean per point: is `curve` inside the band?"""
+        c = np.asarray(curve, dtype=float)
+        if kind == "pointwise":
+            return (c >= self.pointwise_lower) & (c <= self.pointwise_upper)
+        if kind == "simultaneous":
+            return (c >= self.simultaneous_lower) & (c <= self.simultaneous_upper)
+        raise InputError(f"kind: got {kind!r}, expected 'pointwise' or 'simultaneous'")
+
+    def covers(self, curve, kind: Literal["pointwise", "simultaneous"] = "simultaneous") -> bool:
+        """Does the band hold the whole `curve`?"""
+        return bool(np.all(self.contains(curve, kind)))
+
+    def __repr__(self) -> str:
+        cp = self.crit_pointwise
+        pw = f"{cp[0]:.3f}" if np.ptp(cp) == 0 else f"{cp.min():.3f}..{cp.max():.3f}"
+        return (
+            f"Bands(p={self.p:g}, {self.center.size} points, method={self.method!r}, "
+            f"critical values: pointwise {pw}, simultaneous {self.crit_simultaneous:.3f}"
+            f" (se {self.crit_simultaneous_se:.3f}), n_draws={self.n_draws})"
+        )
+
+
+def _quantile_with_se(x: np.ndarray, p: float) -> tuple[float, float]:
+    """p quantile of draws `x` and its standard error from order-statistic ranks."""
+    m = x.size
+    xs = np.sort(x)
+    q = float(np.quantile(xs, p))
+    half = 1.959964 * math.sqrt(m * p * (1.0 - p))
+    lo = xs[max(int(math.floor(m * p - half)), 0)]
+    hi = xs[min(int(math.ceil(m * p + half)), m - 1)]
+    return q, float(hi - lo) / (2.0 * 1.959964)
+
+
+def _make(center, sd, cp, cs, se, p, method, n):
+    return Bands(
+        center=_frozen(center), sd=_frozen(sd),
+        pointwise_lower=_frozen(center - cp * sd), pointwise_upper=_frozen(center + cp * sd),
+        simultaneous_lower=_frozen(center - cs * sd), simultaneous_upper=_frozen(center + cs * sd),
+        crit_pointwise=_frozen(np.broadcast_to(cp, center.shape)), crit_simultaneous=float(cs),
+        crit_simultaneous_se=float(se), p=float(p), method=method, n_draws=int(n),
+    )  # fmt: skip
+
+
+def _check_p(p):
+    if not 0.0 < p < 1.0:
+        raise InputError(f"p: got {p!r}, expected 0 < p < 1", value=p)
+
+
+def bands_from_samples(samples, *, center=None, p: float = 0.95) -> Bands:
+    """Bands from Monte Carlo draws of the curve values.
+
+    **Arguments:**
+
+    - `samples`: draws of the curve at the grid points, shape `(M, n)`.
+    - `center`: the curve estimate, shape `(n,)`; default the mean of the draws
+      (pass the point estimate to centre the band on it).
+    - `p`: coverage probability.
+
+    **Returns:** `Bands` with `sd` the draws' standard deviation per point,
+    `crit_pointwise[i]` the `p` quantile of $|g_s(z_i) - \\hat g(z_i)|/u(z_i)$ and
+    `crit_simultaneous` that of $\\max_i$ of it. Points with zero spread are
+    held exactly and do not enter the maximum.
+    """
+    _check_p(p)
+    s = np.asarray(samples, dtype=float)
+    if s.ndim != 2 or s.shape[0] < 20:
+        raise InputError(f"samples: got shape {s.shape}, expected (M >= 20, n)")
+    c = s.mean(axis=0) if center is None else np.asarray(center, dtype=float)
+    if c.shape != s.shape[1:]:
+        raise InputError(f"center: got shape {c.shape}, expected {s.shape[1:]}")
+    sd = s.std(axis=0, ddof=1)
+    safe = np.where(sd > 0.0, sd, 1.0)
+    t = np.where(sd > 0.0, np.abs(s - c) / safe, 0.0)
+    cp = np.quantile(t, p, axis=0)
+    cs, se = _quantile_with_se(t.max(axis=1), p)
+    return _make(c, sd, cp, cs, se, p, "samples", s.shape[0])
+
+
+def _factor(cov: np.ndarray, sd: np.ndarray) -> np.ndarray:
+    """Rank-r factor L of the correlation matrix: R = L L^T, L of shape (n, r)."""
+    safe = np.where(sd > 0.0, sd, 1.0)
+    r = cov / np.outer(safe, safe)
+    w, v = np.linalg.eigh(0.5 * (r + r.T))
+    keep = w > 1e-10 * max(w.max(), 0.0)
+    return v[:, keep] * np.sqrt(w[keep])
+
+
+@functools.lru_cache(maxsize=16)
+def _base_draws(method: str, r: int, n_sim: int, seed: int, dof: float | None):
+    """Standard-normal draws (n, r) and, with `dof`, sqrt(chi2_dof / dof) per draw.
+
+    They depend only on these arguments, so repeated bands (one per part, per
+    simulated fit) reuse them; the arrays are read-only."""
+    if method == "qmc":
+        k = max(int(math.ceil(math.log2(n_sim))), 4)
+        u = qmc.Sobol(d=r + (dof is not None), scramble=True, seed=seed).random_base2(k)
+        u = np.clip(u, 1e-16, 1.0 - 1e-16)
+        xi = stats.norm.ppf(u[:, :r])
+        scale = None if dof is None else np.sqrt(stats.chi2.ppf(u[:, r], dof) / dof)
+    else:
+        rng = np.random.default_rng(seed)
+        xi = rng.standard_normal((n_sim, r))
+        scale = None if dof is None else np.sqrt(rng.chisquare(dof, n_sim) / dof)
+    xi.flags.writeable = False
+    if scale is not None:
+        scale.flags.writeable = False
+    return xi, scale
+
+
+def bands_linear(
+    mean,
+    cov=None,
+    *,
+    factor=None,
+    p: float = 0.95,
+    dof: float | None = None,
+    method: Literal["mc", "qmc", "scheffe"] = "qmc",
+    n_sim: int = 100_000,
+    seed: int = 0,
+) -> Bands:
+    """Bands from a linearised mean and covariance of the curve values.
+
+    **Arguments:**
+
+    - `mean`: curve estimate at the grid points, shape `(n,)`.
+    - `cov`: its covariance, shape `(n, n)` (typically $G U_\\theta G^\\top$, of
+      low rank $r$ = number of parameters); or, instead,
+    - `factor`: $L$ with $U = L L^\\top$, shape `(n, r)`, e.g. $G\\,\\mathrm{chol}(U_\\theta)$:
+      skips the eigen-decomposition of $U$ (faster when $r \\ll n$).
+    - `p`: coverage probability.
+    - `dof`: degrees of freedom when the scale was estimated (Student-t
+      pointwise, multivariate-t simultaneous); `None` for a known scale.
+    - `method`: `"qmc"` (scrambled Sobol, default), `"mc"` (pseudo-random) or
+      `"scheffe"` (the conservative $\\sqrt{\\chi^2_{r,p}}$ bound).
+    - `n_sim`, `seed`: simulated draws (rounded up to a power of two for `"qmc"`).
+
+    **Returns:** `Bands`.
+    """
+    _check_p(p)
+    if method not in ("mc", "qmc", "scheffe"):
+        raise InputError(f"method: got {method!r}, expected 'qmc', 'mc' or 'scheffe'")
+    m = np.asarray(mean, dtype=float)
+    if (cov is None) == (factor is None):
+        raise InputError("bands_linear: give exactly one of cov= and factor=")
+    if factor is not None:
+        lfull = np.asarray(factor, dtype=float)
+        if lfull.ndim == 1:
+            lfull = lfull[:, None]
+        if m.ndim != 1 or lfull.ndim != 2 or lfull.shape[0] != m.size:
+            raise InputError(
+                f"mean/factor: got shapes {m.shape}, {lfull.shape}, expected (n,), (n, r)"
+            )
+        if not np.all(np.isfinite(lfull)):
+            raise InputError("factor: expected finite values")
+        c = None
+        d = np.sum(lfull**2, axis=1)
+    else:
+        c = np.asarray(cov, dtype=float)
+        if m.ndim != 1 or c.shape != (m.size, m.size):
+            raise InputError(f"mean/cov: got shapes {m.shape}, {c.shape}, expected (n,), (n, n)")
+        d = np.diag(c)
+        if not np.all(np.isfinite(c)) or np.any(d < 0.0):
+            raise InputError("cov: expected finite values and a non-negative diagonal")
+    if dof is not None and not dof > 0:
+        raise InputError(f"dof: got {dof!r}, expected > 0", value=dof)
+    sd = np.sqrt(d)
+    cp = stats.norm.ppf(0.5 + p / 2) if dof is None else stats.t.ppf(0.5 + p / 2, dof)
+    if c is None:
+        lf = lfull / np.where(sd > 0.0, sd, 1.0)[:, None]
+        lf = lf[:, np.any(lf != 0.0, axis=0)]
+        r = int(np.linalg.matrix_rank(lf)) if method == "scheffe" else lf.shape[1]
+    else:
+        lf = _factor(c, sd)
+        r = lf.shape[1]
+    if r == 0:
+        return _make(m, sd, cp, 0.0, 0.0, p, f"linear-{method}", 0)
+    if method == "scheffe":
+        cs = math.sqrt(stats.chi2.ppf(p, r) if dof is None else r * stats.f.ppf(p, r, dof))
+        return _make(m, sd, cp, cs, 0.0, p, "linear-scheffe", 0)
+    if n_sim < 100:
+        raise InputError(f"n_sim: got {n_sim!r}, expected >= 100", value=n_sim)
+    k = lf.shape[1]
+    xi, scale = _base_draws(method, k, int(n_sim), int(seed), None if dof is None else float(dof))
+    mx = np.empty(xi.shape[0])
+    for i in range(0, xi.shape[0], 8192):  # bound memory: (chunk, n)
+        mx[i : i + 8192] = np.abs(xi[i : i + 8192] @ lf.T).max(axis=1)
+    if scale is not None:
+        mx = mx / scale
+    cs, se = _quantile_with_se(mx, p)
+    return _make(m, sd, cp, cs, se, p, f"linear-{method}", xi.shape[0])
