@@ -6,8 +6,9 @@ from pathlib import Path
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-import piecs_bayes  # noqa: E402,F401  (switches float64 on)
 import pytest  # noqa: E402
+
+import piecs_bayes  # noqa: E402,F401  (switches float64 on)
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARED_REFERENCE = ROOT.parent / "shared" / "reference"

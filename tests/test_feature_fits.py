@@ -7,7 +7,14 @@ from piecs_bayes.errors import InputError
 from piecs_bayes.fit import fit_feature, fit_profile, fit_profile_joint
 from piecs_bayes.fit._robust import TUNING
 from piecs_bayes.geometry import MachineTransform
-from piecs_bayes.simulate import DEMO_ERRORS, DEMO_POINTS, DEMO_TRANSFORM, demo_profile, process_deviations, simulate_probe
+from piecs_bayes.simulate import (
+    DEMO_ERRORS,
+    DEMO_POINTS,
+    DEMO_TRANSFORM,
+    demo_profile,
+    process_deviations,
+    simulate_probe,
+)
 
 PROFILE = demo_profile()
 TRUTH = process_deviations(PROFILE, DEMO_ERRORS)
@@ -17,7 +24,9 @@ SIGMA = 0.0015
 def test_joint_fit_recovers_axis_scale_errors_and_deviations():
     truth = dict(TRUTH, dia_24=np.zeros(2), face_end=np.zeros(2))  # reference features as drawn
     real = MachineTransform(x_centre=0.0021, z_offset=-312.4873, scale_x=40e-6, scale_z=-25e-6)
-    sim = simulate_probe(PROFILE, truth, ball_radius=1.0, transform=real, points=DEMO_POINTS, noise_sd=0.0)
+    sim = simulate_probe(
+        PROFILE, truth, ball_radius=1.0, transform=real, points=DEMO_POINTS, noise_sd=0.0
+    )
     fit = fit_profile_joint(
         PROFILE,
         sim["feature"],
@@ -35,20 +44,31 @@ def test_joint_fit_recovers_axis_scale_errors_and_deviations():
 
 
 def test_joint_fit_with_an_unidentifiable_transform_says_why():
-    sim = simulate_probe(PROFILE, TRUTH, ball_radius=1.0, transform=DEMO_TRANSFORM, points=DEMO_POINTS, noise_sd=0.0)
+    sim = simulate_probe(
+        PROFILE, TRUTH, ball_radius=1.0, transform=DEMO_TRANSFORM, points=DEMO_POINTS, noise_sd=0.0
+    )
     fit = fit_profile_joint(
-        PROFILE, sim["feature"], sim["points"], ball_radius=1.0, transform=DEMO_TRANSFORM, free_transform=("x_centre",)
+        PROFILE,
+        sim["feature"],
+        sim["points"],
+        ball_radius=1.0,
+        transform=DEMO_TRANSFORM,
+        free_transform=("x_centre",),
     )
     assert fit["dia_24"].covariance is None
     assert "singular" in fit.result.covariance_reason
     with pytest.raises(InputError, match="unknown transform parameter 'spin'"):
-        fit_profile_joint(PROFILE, sim["feature"], sim["points"], ball_radius=1.0, free_transform=("spin",))
+        fit_profile_joint(
+            PROFILE, sim["feature"], sim["points"], ball_radius=1.0, free_transform=("spin",)
+        )
 
 
 def test_fixed_radius_arc():
     arc = PROFILE["fillet"]
     truth = np.array([0.004, -0.003, 0.0])
-    sim = simulate_probe(PROFILE, {"fillet": truth}, ball_radius=1.0, points={"fillet": 9}, noise_sd=0.0)
+    sim = simulate_probe(
+        PROFILE, {"fillet": truth}, ball_radius=1.0, points={"fillet": 9}, noise_sd=0.0
+    )
     fit = fit_feature(arc, sim["points"], ball_radius=1.0, fix=("radius",))
     assert np.max(np.abs(fit.values - truth)) < 1e-10
     assert fit.std_errors[2] == 0.0 and fit.fixed == ("radius",)
@@ -62,20 +82,35 @@ def _chipped_part(frac, seed, n=20):
     for fid in PROFILE.ids:
         k = int(round(frac * n))
         for i in rng.choice(n, k, replace=False):
-            outliers.append((fid, int(i), float(rng.uniform(0.050, 0.500))))  # chips: 50-500 um, one-sided
+            outliers.append(
+                (fid, int(i), float(rng.uniform(0.050, 0.500)))
+            )  # chips: 50-500 um, one-sided
     return simulate_probe(
-        PROFILE, TRUTH, ball_radius=1.0, points=dict.fromkeys(PROFILE.ids, n), noise_sd=SIGMA, rng=seed,
+        PROFILE,
+        TRUTH,
+        ball_radius=1.0,
+        points=dict.fromkeys(PROFILE.ids, n),
+        noise_sd=SIGMA,
+        rng=seed,
         outliers=tuple(outliers),
     ), len(outliers)
 
 
-@pytest.mark.parametrize("frac, loss", [(0.10, "huber"), (0.10, "tukey"), (0.25, "cauchy"), (0.25, "tukey")])
+@pytest.mark.parametrize(
+    "frac, loss", [(0.10, "huber"), (0.10, "tukey"), (0.25, "cauchy"), (0.25, "tukey")]
+)
 def test_robust_fits_survive_chips_where_plain_least_squares_does_not(frac, loss):
     sim, n_out = _chipped_part(frac, seed=3)
     plain = fit_profile(PROFILE, sim["feature"], sim["points"], ball_radius=1.0, sigma=SIGMA)
     robust = fit_profile(
-        PROFILE, sim["feature"], sim["points"], ball_radius=1.0, method="robust", loss=loss,
-        scale=TUNING[loss] * SIGMA, sigma=SIGMA,
+        PROFILE,
+        sim["feature"],
+        sim["points"],
+        ball_radius=1.0,
+        method="robust",
+        loss=loss,
+        scale=TUNING[loss] * SIGMA,
+        sigma=SIGMA,
     )
     z_plain = np.concatenate([(plain[k].values - TRUTH[k]) / plain[k].std_errors for k in TRUTH])
     z_rob = np.concatenate([(robust[k].values - TRUTH[k]) / robust[k].std_errors for k in TRUTH])

@@ -57,7 +57,9 @@ def test_line_deviation_parameters_mean_what_they_say():
     point, direction, _ = LINE.actual(jnp.array([0.01, 0.001]))
 
     def x_at(z):
-        return float(intersect_line_line(point, direction, jnp.array([0.0, z]), jnp.array([1.0, 0.0]))[0])
+        return float(
+            intersect_line_line(point, direction, jnp.array([0.0, z]), jnp.array([1.0, 0.0]))[0]
+        )
 
     assert x_at(-15.0) == pytest.approx(12.01, abs=1e-12)
     # travelling -z (drawing: leftwards), a CCW turn bends the line down (-x)
@@ -73,9 +75,13 @@ def test_arc_radius_change_moves_a_concave_surface_into_the_material():
 
 
 def test_line_line_intersection():
-    p = intersect_line_line(jnp.array([0.0, 0.0]), jnp.array([1.0, 1.0]), jnp.array([0.0, 2.0]), jnp.array([1.0, -1.0]))
+    p = intersect_line_line(
+        jnp.array([0.0, 0.0]), jnp.array([1.0, 1.0]), jnp.array([0.0, 2.0]), jnp.array([1.0, -1.0])
+    )
     assert np.allclose(p, [1.0, 1.0], atol=1e-15)
-    par = intersect_line_line(jnp.zeros(2), jnp.array([1.0, 0.0]), jnp.array([0.0, 1.0]), jnp.array([2.0, 0.0]))
+    par = intersect_line_line(
+        jnp.zeros(2), jnp.array([1.0, 0.0]), jnp.array([0.0, 1.0]), jnp.array([2.0, 0.0])
+    )
     assert np.all(np.isnan(par))
 
 
@@ -89,19 +95,33 @@ def test_line_circle_intersection_picks_the_branch_nearest_the_reference():
 
 def test_circle_circle_intersection():
     # (0,0) r=5 and (8,0) r=5 meet at (4, +-3)
-    a = intersect_circle_circle(jnp.zeros(2), 5.0, jnp.array([8.0, 0.0]), 5.0, jnp.array([4.0, 2.0]))
-    b = intersect_circle_circle(jnp.zeros(2), 5.0, jnp.array([8.0, 0.0]), 5.0, jnp.array([4.0, -2.0]))
+    a = intersect_circle_circle(
+        jnp.zeros(2), 5.0, jnp.array([8.0, 0.0]), 5.0, jnp.array([4.0, 2.0])
+    )
+    b = intersect_circle_circle(
+        jnp.zeros(2), 5.0, jnp.array([8.0, 0.0]), 5.0, jnp.array([4.0, -2.0])
+    )
     assert np.allclose(a, [4.0, 3.0], atol=1e-14) and np.allclose(b, [4.0, -3.0], atol=1e-14)
-    assert np.all(np.isnan(intersect_circle_circle(jnp.zeros(2), 1.0, jnp.array([8.0, 0.0]), 1.0, jnp.zeros(2))))
+    assert np.all(
+        np.isnan(
+            intersect_circle_circle(jnp.zeros(2), 1.0, jnp.array([8.0, 0.0]), 1.0, jnp.zeros(2))
+        )
+    )
 
 
 def test_intersections_are_differentiable():
-    f = lambda x: intersect_line_line(jnp.array([x, 0.0]), jnp.array([0.0, 1.0]), jnp.zeros(2), jnp.array([1.0, 1.0]))  # noqa: E731
+    def f(x):
+        return intersect_line_line(
+            jnp.array([x, 0.0]), jnp.array([0.0, 1.0]), jnp.zeros(2), jnp.array([1.0, 1.0])
+        )
+
     assert np.allclose(jax.jacfwd(f)(2.0), [1.0, 1.0])
 
 
 def test_machine_part_transform_and_inverse():
-    t = MachineTransform(x_centre=0.003, z_offset=-312.5, scale_x=12e-6, scale_z=-8e-6, rotation=2e-5)
+    t = MachineTransform(
+        x_centre=0.003, z_offset=-312.5, scale_x=12e-6, scale_z=-8e-6, rotation=2e-5
+    )
     pts = jnp.array([[26.0, -315.0], [44.0, -400.0], [0.0, 0.0]])
     back = part_to_machine(machine_to_part(pts, t), t)
     assert np.max(np.abs(back - pts)) < 1e-12
@@ -128,7 +148,9 @@ def test_profile_side_flips_for_internal_profiles_and_reversed_travel():
 def test_profile_rejects_gaps_and_duplicate_ids():
     a = make_feature(dict(id="a", p0=(10.0, 0.0), p1=(10.0, -30.0)), -1)
     b = make_feature(dict(id="b", p0=(10.5, -30.0), p1=(15.0, -30.0)), -1)
-    with pytest.raises(ProfileError, match=r"not connected: 'a' ends at \(x=10, z=-30\) but 'b' starts at \(x=10.5"):
+    with pytest.raises(
+        ProfileError, match=r"not connected: 'a' ends at \(x=10, z=-30\) but 'b' starts at \(x=10.5"
+    ):
         Profile((a, b))
     with pytest.raises(ProfileError, match="used twice"):
         Profile((a, a))

@@ -69,7 +69,9 @@ def test_inch_study_is_converted_to_mm(tmp_path):
     study = load_study(write_study(tmp_path, units="in"))
     assert study.profile["dia"].p0 == pytest.approx((12.0 * 25.4, 0.0))
     assert study.probe.ball_radius == pytest.approx(25.4)
-    probe = read_probe_csv(tmp_path / "p.csv", units="in") if (tmp_path / "p.csv").exists() else None
+    probe = (
+        read_probe_csv(tmp_path / "p.csv", units="in") if (tmp_path / "p.csv").exists() else None
+    )
     assert probe is None
 
 
@@ -79,10 +81,16 @@ def test_inch_study_is_converted_to_mm(tmp_path):
         ("feature,x\ndia,26\n", r"p\.csv:1, column 'z': missing required column 'z'"),
         ("feature,x,z\ndia,26.0,abc\n", r"p\.csv:2, column 'z': not a number: 'abc'"),
         ("feature,x,z\ndia,nan,-5\n", r"p\.csv:2, column 'x': value must be finite, got 'nan'"),
-        ("feature,x,z\n# c\nbore,26,-5\n", r"p\.csv:3, column 'feature', feature 'bore': unknown feature id 'bore'; the study's profile has face, dia"),
+        (
+            "feature,x,z\n# c\nbore,26,-5\n",
+            r"p\.csv:3, column 'feature', feature 'bore': unknown feature id 'bore'; the study's profile has face, dia",
+        ),
         ("feature,x,z\n", r"p\.csv: probe file has a header but no data rows"),
         ("feature,x,z\ndia,26\n", r"p\.csv:2: row has 2 cells, the header has 3"),
-        ("feature,x,z,colour\ndia,26,-5,red\n", r"p\.csv:1, column 'colour': unknown column 'colour'"),
+        (
+            "feature,x,z,colour\ndia,26,-5,red\n",
+            r"p\.csv:1, column 'colour': unknown column 'colour'",
+        ),
         ("", r"p\.csv: probe file is empty"),
     ],
 )
@@ -94,12 +102,17 @@ def test_bad_probe_files_are_named(tmp_path, csv, pattern):
 
 def test_too_few_points_for_a_feature(tmp_path):
     study = load_study(write_study(tmp_path, csv="feature,x,z\ndia,26.02,-5\ndia,26.02,-15\n"))
-    with pytest.raises(InputError, match=r"p\.csv, feature 'dia': 2 point\(s\) are too few for a line: at least 3"):
+    with pytest.raises(
+        InputError, match=r"p\.csv, feature 'dia': 2 point\(s\) are too few for a line: at least 3"
+    ):
         fit_study(study)
 
 
 def test_unknown_unit(tmp_path):
-    with pytest.raises(InputError, match=r"s\.toml: study\.units: unknown value 'furlong'; expected one of 'mm', 'in'"):
+    with pytest.raises(
+        InputError,
+        match=r"s\.toml: study\.units: unknown value 'furlong'; expected one of 'mm', 'in'",
+    ):
         load_study(write_study(tmp_path, units="furlong"))
 
 
@@ -107,18 +120,37 @@ def test_non_connected_profile(tmp_path):
     path = write_study(tmp_path, dia_end="24.0")
     text = path.read_text().replace("start = [24.0, 0.0]", "start = [24.2, 0.0]")
     path.write_text(text)
-    with pytest.raises(InputError, match=r"feature 'dia': profile is not connected: 'face' ends at \(x=12, z=0\) but 'dia' starts at \(x=12.1, z=0\)"):
+    with pytest.raises(
+        InputError,
+        match=r"feature 'dia': profile is not connected: 'face' ends at \(x=12, z=0\) but 'dia' starts at \(x=12.1, z=0\)",
+    ):
         load_study(path)
 
 
 @pytest.mark.parametrize(
     "old, new, pattern",
     [
-        ('type = "line"\nstart = [24.0', 'type = "spline"\nstart = [24.0', r"profile\.feature\[1\]\.type, feature 'dia'|feature 'dia': profile\.feature\[1\]\.type: unknown feature type 'spline'"),
-        ("end = [24.0, -30.0]", 'end = [24.0, "a"]', r"feature 'dia': profile\.feature\[1\]\.end: expected a point \[x, z\] of two numbers"),
+        (
+            'type = "line"\nstart = [24.0',
+            'type = "spline"\nstart = [24.0',
+            r"profile\.feature\[1\]\.type, feature 'dia'|feature 'dia': profile\.feature\[1\]\.type: unknown feature type 'spline'",
+        ),
+        (
+            "end = [24.0, -30.0]",
+            'end = [24.0, "a"]',
+            r"feature 'dia': profile\.feature\[1\]\.end: expected a point \[x, z\] of two numbers",
+        ),
         ("ball_radius = 1.0", "ball_radius = -1.0", r"probe\.ball_radius: must be > 0, got -1\.0"),
-        ("tolerance = [-0.01, 0.01]", "tolerance = [0.01, -0.01]", r"feature 'dia': profile\.feature\[1\]\.tolerance: expected \[lower, upper\]"),
-        ('probe_files = ["p.csv"]', 'probe_files = ["missing*.csv"]', r"study\.probe_files: no file matches 'missing\*\.csv'"),
+        (
+            "tolerance = [-0.01, 0.01]",
+            "tolerance = [0.01, -0.01]",
+            r"feature 'dia': profile\.feature\[1\]\.tolerance: expected \[lower, upper\]",
+        ),
+        (
+            'probe_files = ["p.csv"]',
+            'probe_files = ["missing*.csv"]',
+            r"study\.probe_files: no file matches 'missing\*\.csv'",
+        ),
     ],
 )
 def test_bad_study_values_are_named(tmp_path, old, new, pattern):
@@ -131,8 +163,12 @@ def test_bad_study_values_are_named(tmp_path, old, new, pattern):
 
 
 def test_unknown_uncertainty_source_and_bad_toml(tmp_path):
-    path = write_study(tmp_path, extra='\n[uncertainty]\nhumidity = { dist = "normal", sd = 1.0 }\n')
-    with pytest.raises(InputError, match=r"uncertainty\.humidity: unknown uncertainty source 'humidity'"):
+    path = write_study(
+        tmp_path, extra='\n[uncertainty]\nhumidity = { dist = "normal", sd = 1.0 }\n'
+    )
+    with pytest.raises(
+        InputError, match=r"uncertainty\.humidity: unknown uncertainty source 'humidity'"
+    ):
         load_study(path)
     (tmp_path / "bad.toml").write_text("[study\n")
     with pytest.raises(InputError, match=r"bad\.toml: not valid TOML"):
@@ -140,14 +176,23 @@ def test_unknown_uncertainty_source_and_bad_toml(tmp_path):
 
 
 def test_ball_too_big_for_a_concave_fillet(tmp_path):
-    from piecs_bayes.simulate import demo_profile, study_toml_text
     from piecs_bayes.geometry import MachineTransform
+    from piecs_bayes.simulate import demo_profile, study_toml_text
 
     text = study_toml_text(
-        demo_profile(), name="x", probe_files=[], program=None, ball_radius=3.5, ball_radius_u=0.0,
-        repeatability=0.001, transform=MachineTransform(),
+        demo_profile(),
+        name="x",
+        probe_files=[],
+        program=None,
+        ball_radius=3.5,
+        ball_radius_u=0.0,
+        repeatability=0.001,
+        transform=MachineTransform(),
     )
     (tmp_path / "s.toml").write_text(text)
-    with pytest.raises(InputError, match=r"feature 'fillet': concave arc radius 3 mm is not larger than the probe ball radius 3.5 mm"):
+    with pytest.raises(
+        InputError,
+        match=r"feature 'fillet': concave arc radius 3 mm is not larger than the probe ball radius 3.5 mm",
+    ):
         load_study(tmp_path / "s.toml")
     assert math.isfinite(1.0)

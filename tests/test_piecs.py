@@ -30,11 +30,15 @@ TRUTH = process_deviations(PROFILE, DEMO_ERRORS)
 def _machine_to_part_fit(sim, **kw):
     from piecs_bayes.fit._features import to_part_frame
 
-    return fit_profile(PROFILE, sim["feature"], to_part_frame(DEMO_TRANSFORM, sim["points"]), ball_radius=1.0, **kw)
+    return fit_profile(
+        PROFILE, sim["feature"], to_part_frame(DEMO_TRANSFORM, sim["points"]), ball_radius=1.0, **kw
+    )
 
 
 def test_noise_free_fit_recovers_the_true_deviations_to_1e9_mm():
-    sim = simulate_probe(PROFILE, TRUTH, ball_radius=1.0, transform=DEMO_TRANSFORM, points=DEMO_POINTS, noise_sd=0.0)
+    sim = simulate_probe(
+        PROFILE, TRUTH, ball_radius=1.0, transform=DEMO_TRANSFORM, points=DEMO_POINTS, noise_sd=0.0
+    )
     fit = _machine_to_part_fit(sim)
     for fid, dev in TRUTH.items():
         assert np.max(np.abs(fit[fid].values - dev)) < 1e-9, fid
@@ -43,7 +47,13 @@ def test_noise_free_fit_recovers_the_true_deviations_to_1e9_mm():
 
 def test_noisy_fit_recovers_the_truth_within_three_standard_uncertainties():
     sim = simulate_probe(
-        PROFILE, TRUTH, ball_radius=1.0, transform=DEMO_TRANSFORM, points=DEMO_POINTS, noise_sd=0.0015, rng=11
+        PROFILE,
+        TRUTH,
+        ball_radius=1.0,
+        transform=DEMO_TRANSFORM,
+        points=DEMO_POINTS,
+        noise_sd=0.0015,
+        rng=11,
     )
     fit = _machine_to_part_fit(sim)
     for fid, dev in TRUTH.items():
@@ -86,7 +96,11 @@ def test_hand_computed_mirror_of_a_tapered_cylinder():
 
 
 def test_tangent_fillet_is_replaced_tangent_to_its_compensated_neighbours():
-    dev = {"dia_30": np.array([0.010, 0.0]), "shoulder": np.array([-0.004, 0.0]), "fillet": np.array([0.0, 0.0, 0.006])}
+    dev = {
+        "dia_30": np.array([0.010, 0.0]),
+        "shoulder": np.array([-0.004, 0.0]),
+        "fillet": np.array([0.0, 0.0, 0.006]),
+    }
     path = adjusted_path(PROFILE, dev)
     fillet = path.profile["fillet"]
     r_c = 3.0 - 0.006
@@ -102,7 +116,10 @@ def test_tangent_fillet_is_replaced_tangent_to_its_compensated_neighbours():
 
 
 def test_compensation_above_the_limit_is_refused():
-    with pytest.raises(AnalysisError, match=r"feature 'dia_24' would be corrected by 0\.3000 mm, more than the configured maximum correction 0\.1 mm"):
+    with pytest.raises(
+        AnalysisError,
+        match=r"feature 'dia_24' would be corrected by 0\.3000 mm, more than the configured maximum correction 0\.1 mm",
+    ):
         adjusted_path(PROFILE, {"dia_24": np.array([0.3, 0.0])}, max_correction=0.1)
 
 

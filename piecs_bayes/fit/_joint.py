@@ -31,13 +31,15 @@ def _parse_fix(profile: Profile, fix) -> dict[str, set]:
         fid, _, name = str(item).partition(".")
         if fid not in out:
             raise InputError(
-                f"cannot fix {item!r}: unknown feature {fid!r}; the profile has {', '.join(profile.ids)}",
+                f"cannot fix {item!r}: unknown feature {fid!r}; "
+                f"the profile has {', '.join(profile.ids)}",
                 feature=fid,
                 value=item,
             )
         if name not in profile[fid].param_names:
             raise InputError(
-                f"cannot fix {item!r}: {fid!r} has parameters {', '.join(profile[fid].param_names)}",
+                f"cannot fix {item!r}: {fid!r} has parameters "
+                f"{', '.join(profile[fid].param_names)}",
                 feature=fid,
                 value=item,
             )
@@ -78,7 +80,8 @@ def fit_profile_joint(
     for name in free_transform:
         if name not in TRANSFORM_PARAMS:
             raise InputError(
-                f"unknown transform parameter {name!r}; expected one of {', '.join(TRANSFORM_PARAMS)}",
+                f"unknown transform parameter {name!r}; "
+                f"expected one of {', '.join(TRANSFORM_PARAMS)}",
                 value=name,
             )
     feature_ids = np.asarray(feature_ids).astype(str)

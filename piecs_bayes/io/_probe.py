@@ -139,7 +139,8 @@ def read_probe_csv(
     unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
     if unknown:
         raise InputError(
-            f"unknown column {unknown[0]!r}; allowed: {', '.join(REQUIRED_COLUMNS + OPTIONAL_COLUMNS)}",
+            f"unknown column {unknown[0]!r}; "
+            f"allowed: {', '.join(REQUIRED_COLUMNS + OPTIONAL_COLUMNS)}",
             file=name,
             line=header_line,
             column=unknown[0],

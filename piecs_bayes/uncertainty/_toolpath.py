@@ -15,6 +15,7 @@ bands are pointwise and simultaneous bands of that offset.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import jax
@@ -62,6 +63,7 @@ class PathGrid:
         return len(self.t)
 
 
+@functools.lru_cache(maxsize=32)
 def path_grid(profile: Profile, per_feature: int = 21) -> PathGrid:
     """``per_feature`` points on every feature (ends included)."""
     fi, ts, pts, nrm = [], [], [], []
@@ -133,8 +135,9 @@ class ToolpathUncertainty:
         sd = self.vertex_sd
         return (
             f"ToolpathUncertainty({self.method}, {len(self.vertices)} vertices, "
-            f"max u(vertex) = {sd.max() * 1000:.2f} um, simultaneous k = {self.bands.crit_simultaneous:.2f}, "
-            f"max band half-width {np.max(self.bands.crit_simultaneous * self.offset_sd) * 1000:.2f} um)"
+            f"max u(vertex) = {sd.max() * 1000:.2f} um, "
+            f"simultaneous k = {self.bands.crit_simultaneous:.2f}, max band half-width "
+            f"{np.max(self.bands.crit_simultaneous * self.offset_sd) * 1000:.2f} um)"
         )
 
 
@@ -144,6 +147,79 @@ def _split(profile, flat):
         out.append(flat[i : i + f.nparams])
         i += f.nparams
     return tuple(out)
+
+
+def _gain_key(gain):
+    return tuple(sorted(gain.items())) if isinstance(gain, dict) else float(gain)
+
+
+@functools.lru_cache(maxsize=64)
+def _path_jacobian(profile: Profile, grid: PathGrid, gain_key):
+    """Jitted ``devs_flat -> (path values, d path / d devs)``, cached per structure."""
+    gain = dict(gain_key) if isinstance(gain_key, tuple) else gain_key
+    path_f = path_function(profile, grid, gain)
+
+    def path_flat(devs_flat):
+        verts, offs = path_f(_split(profile, devs_flat))
+        return jnp.concatenate([verts.ravel(), offs])
+
+    return jax.jit(lambda d: (path_flat(d), jax.jacfwd(path_flat)(d)))
+
+
+@functools.lru_cache(maxsize=64)
+def _batched_path(profile: Profile, grid: PathGrid, gain_key):
+    """Jitted path function vmapped over draws, cached per structure."""
+    gain = dict(gain_key) if isinstance(gain_key, tuple) else gain_key
+    return jax.jit(jax.vmap(path_function(profile, grid, gain)))
+
+
+@functools.lru_cache(maxsize=64)
+def _residual_jacobians(
+    profile: Profile,
+    feature_ids: tuple,
+    names: tuple,
+    ball_radius: float,
+    transform: MachineTransform,
+    with_approach: bool,
+):
+    """Jitted Jacobians of all residuals with respect to the deviations and to the
+    inputs (points, then source deltas), cached per point pattern so that many
+    parts of one study compile once."""
+    ids = np.asarray(feature_ids)
+    feats = profile.features
+    index = [np.flatnonzero(ids == f.id) for f in feats]
+    n_pts = 2 * len(ids)
+    base = transform.as_array()
+
+    def residuals(devs_flat, x, appr):
+        points = x[:n_pts].reshape(-1, 2)
+        deltas = dict(zip(names, x[n_pts:], strict=True))
+        t = base
+        for name, v in deltas.items():
+            if name in _TRANSFORM_INDEX:
+                t = t.at[_TRANSFORM_INDEX[name]].add(v)
+            elif name == "thermal":
+                t = t.at[2].add(v).at[3].add(v)
+        rb = ball_radius + deltas.get("ball_radius", 0.0)
+        part = machine_to_part(points, t)
+        devs = _split(profile, devs_flat)
+        out = []
+        for f, idx, d in zip(feats, index, devs, strict=True):
+            if idx.size == 0:
+                continue
+            q = part[idx]
+            if "pretravel" in deltas:
+                a = appr[idx] if with_approach else -f.outward_normal(q, d)
+                q = q - deltas["pretravel"] * a
+            out.append(f.signed_distance(q, d) - rb)
+        return jnp.concatenate(out)
+
+    return jax.jit(
+        lambda d, x, a: (
+            jax.jacfwd(residuals, argnums=0)(d, x, a),
+            jax.jacfwd(residuals, argnums=1)(d, x, a),
+        )
+    )
 
 
 def linearised_toolpath(
@@ -186,61 +262,39 @@ def linearised_toolpath(
     for name in source_sd:
         if name not in LINEARISED_SOURCES:
             raise InputError(
-                f"unknown uncertainty source {name!r}; expected one of {', '.join(LINEARISED_SOURCES)}"
+                f"unknown uncertainty source {name!r}; "
+                f"expected one of {', '.join(LINEARISED_SOURCES)}"
             )
     feature_ids = np.asarray(feature_ids).astype(str)
     pts = np.asarray(machine_points, dtype=float)
     grid = grid or path_grid(profile)
-    names = list(source_sd)
-    base = transform.as_array()
-    appr = None if approach is None else jnp.asarray(approach)
+    names = tuple(source_sd)
     feats = profile.features
-    index = [np.flatnonzero(feature_ids == f.id) for f in feats]
-    n_pts = pts.size
     dev0 = jnp.concatenate(
         [jnp.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float) for f in feats]
     )
-
-    def residuals(devs_flat, x):
-        points = x[:n_pts].reshape(-1, 2)
-        deltas = dict(zip(names, x[n_pts:], strict=True))
-        t = base
-        for name, v in deltas.items():
-            if name in _TRANSFORM_INDEX:
-                t = t.at[_TRANSFORM_INDEX[name]].add(v)
-            elif name == "thermal":
-                t = t.at[2].add(v).at[3].add(v)
-        rb = ball_radius + deltas.get("ball_radius", 0.0)
-        part = machine_to_part(points, t)
-        devs = _split(profile, devs_flat)
-        out = []
-        for f, idx, d in zip(feats, index, devs, strict=True):
-            if idx.size == 0:
-                continue
-            q = part[idx]
-            if "pretravel" in deltas:
-                a = appr[idx] if appr is not None else -f.outward_normal(q, d)
-                q = q - deltas["pretravel"] * a
-            out.append(f.signed_distance(q, d) - rb)
-        return jnp.concatenate(out)
-
     x0 = jnp.concatenate([jnp.asarray(pts.ravel()), jnp.zeros(len(names))])
-    j_d = np.asarray(jax.jacfwd(residuals, argnums=0)(dev0, x0))
-    j_x = np.asarray(jax.jacfwd(residuals, argnums=1)(dev0, x0))
+    jac_fn = _residual_jacobians(
+        profile,
+        tuple(feature_ids.tolist()),
+        names,
+        float(ball_radius),
+        transform,
+        approach is not None,
+    )
+    j_d, j_x = map(
+        np.asarray, jac_fn(dev0, x0, None if approach is None else jnp.asarray(approach))
+    )
+    index = [np.flatnonzero(feature_ids == f.id) for f in feats]
     measured = np.concatenate(
         [np.full(f.nparams, idx.size > 0) for f, idx in zip(feats, index, strict=True)]
     )
     d_dx = np.zeros((dev0.size, x0.size))
     jm = j_d[:, measured]
     d_dx[measured] = -np.linalg.solve(jm.T @ jm, jm.T @ j_x)
-    path_f = path_function(profile, grid, gain)
-
-    def path_flat(devs_flat):
-        verts, offs = path_f(_split(profile, devs_flat))
-        return jnp.concatenate([verts.ravel(), offs])
-
-    y_path = np.asarray(path_flat(dev0))
-    jac = np.vstack([d_dx, np.asarray(jax.jacfwd(path_flat)(dev0)) @ d_dx])
+    y_path, j_path = map(np.asarray, _path_jacobian(profile, grid, _gain_key(gain))(dev0))
+    jac = np.vstack([d_dx, j_path @ d_dx])
+    n_pts = pts.size
     y = np.concatenate([np.asarray(dev0), y_path])
     var_x = np.concatenate([np.full(n_pts, sigma**2), np.array([source_sd[n] ** 2 for n in names])])
     cov_y = (jac * var_x) @ jac.T
@@ -308,7 +362,7 @@ def monte_carlo_toolpath(
         for f in profile.features
     )
     path_f = path_function(profile, grid, gain)
-    verts, offs = jax.jit(jax.vmap(path_f))(stacked)
+    verts, offs = _batched_path(profile, grid, _gain_key(gain))(stacked)
     verts, offs = np.asarray(verts), np.asarray(offs)
     vcov = np.array([np.cov(verts[:, j, :], rowvar=False) for j in range(verts.shape[1])])
     means = {
