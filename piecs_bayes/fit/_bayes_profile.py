@@ -28,24 +28,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import MachineTransform, Profile, machine_to_part
+from ..geometry import MachineTransform, Profile
 from ._bayes import Posterior, gaussian_loglik, sample_posterior, student_t_loglik
+from ._measurement import SOURCE_EFFECTS, probe_residuals
 from ._priors import prior_from_spec
 
 __all__ = ["BayesProfileFit", "profile_log_posterior", "fit_profile_bayes", "NUISANCE_SOURCES"]
 
 #: Sources that enter the model as a nuisance parameter (``repeatability`` is sigma).
-NUISANCE_SOURCES = (
-    "ball_radius",
-    "pretravel",
-    "x_centre",
-    "z_offset",
-    "scale_x",
-    "scale_z",
-    "rotation",
-    "thermal",
-)
-_TRANSFORM_INDEX = {"x_centre": 0, "z_offset": 1, "scale_x": 2, "scale_z": 3, "rotation": 4}
+NUISANCE_SOURCES = SOURCE_EFFECTS
 
 
 @dataclass(frozen=True)
@@ -146,33 +137,24 @@ def _log_posterior(
     groups = [(f, sl, jnp.asarray(np.flatnonzero(feature_ids == f.id))) for f, sl in lay.features]
     base = transform.as_array()
 
+    pairs = [(f, idx) for f, _, idx in groups]
+
     def log_prob(theta, args):
         points, appr = args
-        t = base
-        rb = ball_radius
-        centres = points
         lp = 0.0
+        deltas = {}
         for name, k in lay.nuisance:
-            v = theta[k]
-            lp = lp + priors[name].log_pdf(v)
-            if name in _TRANSFORM_INDEX:
-                t = t.at[_TRANSFORM_INDEX[name]].add(v)
-            elif name == "thermal":
-                t = t.at[2].add(v).at[3].add(v)
-            elif name == "ball_radius":
-                rb = rb + v
-        pretravel = dict(lay.nuisance).get("pretravel")
-        part = machine_to_part(centres, t)
-        res = []
-        for f, sl, idx in groups:
-            pts = part[idx]
-            dev = theta[sl]
-            if pretravel is not None:
-                # the trigger comes late, along the approach (into the material)
-                a = appr[idx] if with_approach else -f.outward_normal(pts, dev)
-                pts = pts - theta[pretravel] * a
-            res.append(f.signed_distance(pts, dev) - rb)
-        r = jnp.concatenate(res)
+            deltas[name] = theta[k]
+            lp = lp + priors[name].log_pdf(theta[k])
+        r = probe_residuals(
+            pairs,
+            [theta[sl] for _, sl, _ in groups],
+            points,
+            deltas,
+            transform=base,
+            ball_radius=ball_radius,
+            approach=appr if with_approach else None,
+        )
         if lay.sigma_index is not None:
             s = theta[lay.sigma_index]
             lp = lp + priors["repeatability"].log_pdf(s)

@@ -24,7 +24,8 @@ import numpy as np
 
 from ..compensate._mirror import adjusted_geometry
 from ..errors import InputError
-from ..geometry import Line, MachineTransform, Profile, machine_to_part
+from ..fit._measurement import SOURCE_EFFECTS, probe_residuals
+from ..geometry import Line, MachineTransform, Profile
 from ._bands import Bands, bands_from_samples, bands_linear
 from ._propagate import uncertainty_budget
 
@@ -37,17 +38,7 @@ __all__ = [
     "monte_carlo_toolpath",
 ]
 
-_TRANSFORM_INDEX = {"x_centre": 0, "z_offset": 1, "scale_x": 2, "scale_z": 3, "rotation": 4}
-LINEARISED_SOURCES = (
-    "ball_radius",
-    "pretravel",
-    "x_centre",
-    "z_offset",
-    "scale_x",
-    "scale_z",
-    "rotation",
-    "thermal",
-)
+LINEARISED_SOURCES = SOURCE_EFFECTS
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,28 +182,20 @@ def _residual_jacobians(
     n_pts = 2 * len(ids)
     base = transform.as_array()
 
+    measured = [(f, idx) for f, idx in zip(feats, index, strict=True) if idx.size]
+    offsets = {f.id: i for i, f in enumerate(feats)}
+
     def residuals(devs_flat, x, appr):
-        points = x[:n_pts].reshape(-1, 2)
-        deltas = dict(zip(names, x[n_pts:], strict=True))
-        t = base
-        for name, v in deltas.items():
-            if name in _TRANSFORM_INDEX:
-                t = t.at[_TRANSFORM_INDEX[name]].add(v)
-            elif name == "thermal":
-                t = t.at[2].add(v).at[3].add(v)
-        rb = ball_radius + deltas.get("ball_radius", 0.0)
-        part = machine_to_part(points, t)
         devs = _split(profile, devs_flat)
-        out = []
-        for f, idx, d in zip(feats, index, devs, strict=True):
-            if idx.size == 0:
-                continue
-            q = part[idx]
-            if "pretravel" in deltas:
-                a = appr[idx] if with_approach else -f.outward_normal(q, d)
-                q = q - deltas["pretravel"] * a
-            out.append(f.signed_distance(q, d) - rb)
-        return jnp.concatenate(out)
+        return probe_residuals(
+            measured,
+            [devs[offsets[f.id]] for f, _ in measured],
+            x[:n_pts].reshape(-1, 2),
+            dict(zip(names, x[n_pts:], strict=True)),
+            transform=base,
+            ball_radius=ball_radius,
+            approach=appr if with_approach else None,
+        )
 
     return jax.jit(
         lambda d, x, a: (
