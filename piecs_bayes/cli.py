@@ -110,7 +110,7 @@ def _plugins():
     """Command groups that live in their own modules (``register(subparsers)``)."""
     import importlib
 
-    for name in ("_cli_gcode",):
+    for name in ("_cli_gcode", "_cli_decide"):
         try:
             yield importlib.import_module(f".{name}", __package__)
         except ModuleNotFoundError as exc:
@@ -233,6 +233,7 @@ def _write_bounds(out, study, fit, bayes, gain, console, written):
 
 
 def cmd_compensate(args, console) -> int:
+    from .decisions import write_compensation_outputs
     from .export import path_csv
     from .pipeline import compensate_study
 
@@ -249,6 +250,12 @@ def cmd_compensate(args, console) -> int:
         _write_bayes(out, study, bayes, console, written)
     gain = study.compensation.gain if args.gain is None else args.gain
     _write_bounds(out, study, fit, bayes, gain, console, written)
+    files = write_compensation_outputs(  # error spec, LinuxCNC tables, tool offsets
+        study, fit, out, gain=args.gain, protect=[study.path, *study.probe_files]
+    )
+    written += files.written
+    for line in files.lines():
+        console.say(line)
     for p in written:
         console.say(f"wrote {p}")
     return 0

@@ -291,6 +291,7 @@ x_centre = { dist = "normal", mean = 0.0, sd = 0.001 }
 [fit]
 method = "robust"
 loss = "huber"
+bayes_steps = 8000             # MCMC steps per ensemble (4 ensembles; 50 tau)
 
 [compensation]
 gain = 1.0
@@ -353,7 +354,8 @@ def write_demo(out_dir, *, seed: int = 20261123) -> dict:
     )
     header = (
         f"Simulated by piecs_bayes.simulate.write_demo(seed={seed}).\n"
-        "Ball-centre machine coordinates; X is a diameter (mm). One chip under the stylus on dia_30."
+        "Ball-centre machine coordinates; X is a diameter (mm). "
+        "One chip under the stylus on dia_30."
     )
     write_text_atomic(
         out / "probe_part01.csv", probe_csv_text(sim, x_mode="diameter", header=header)

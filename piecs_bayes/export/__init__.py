@@ -22,8 +22,13 @@ from ._offsets import g10_linuxcnc as g10_linuxcnc
 from ._offsets import offsets_from_json as offsets_from_json
 from ._offsets import offsets_to_json as offsets_to_json
 from ._offsets import tool_offset_update as tool_offset_update
+from ._tables import band_csv as band_csv
+from ._tables import bounds_csv as bounds_csv
+from ._tables import bounds_json as bounds_json
+from ._tables import budget_csv as budget_csv
 from ._tables import fit_csv as fit_csv
 from ._tables import fit_json as fit_json
 from ._tables import path_csv as path_csv
+from ._tables import posterior_csv as posterior_csv
 from ._tables import residuals_csv as residuals_csv
 from ._tables import to_csv as to_csv

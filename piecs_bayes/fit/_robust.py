@@ -38,6 +38,7 @@ __all__ = [
     "TUNING",
     "loss_id",
     "mad_sigma",
+    "psi_prime",
     "rho_over_z",
     "rho_prime",
 ]
@@ -132,16 +133,39 @@ def _custom_weight(rho: Callable) -> Callable:
     return weight
 
 
+def _select(idx, branches, z):
+    """`branches[idx](z)` for a traced `idx`: every branch is evaluated (they are
+    cheap and elementwise) and one is picked. Unlike `lax.switch` this adds no control
+    flow, which keeps the solver's compile time down (XLA fuses it)."""
+    if isinstance(idx, int):
+        return branches[idx](z)
+    z = jnp.asarray(z)
+    out = branches[0](z)
+    for k, branch in enumerate(branches[1:], start=1):
+        out = jnp.where(idx == k, branch(z), out)
+    return out
+
+
 def rho_over_z(idx, z, custom: Callable | None = None):
     r"""$\rho(z)/z$ for loss number `idx` (a traced integer), elementwise; 1 at $z=0$."""
     branches = list(_RATIOS) + ([_custom_ratio(custom)] if custom is not None else [])
-    return jax.lax.switch(idx, branches, z)
+    return _select(idx, branches, z)
 
 
 def rho_prime(idx, z, custom: Callable | None = None):
     r"""$\rho'(z)$, the IRLS weight of each residual, for loss number `idx`."""
     branches = list(_WEIGHTS) + ([_custom_weight(custom)] if custom is not None else [])
-    return jax.lax.switch(idx, branches, z)
+    return _select(idx, branches, z)
+
+
+def psi_prime(idx, u, custom: Callable | None = None):
+    r"""$\psi'(u)$ for $\psi(u) = u\,\rho'(u^2)$, elementwise (the slope of the
+    influence function, used in Huber's covariance)."""
+
+    def psi(v):
+        return v * rho_prime(idx, v * v, custom)
+
+    return jnp.vectorize(jax.grad(psi))(u)
 
 
 def mad_sigma(e, mask):

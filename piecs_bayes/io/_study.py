@@ -228,7 +228,8 @@ def _features(r: _Reader, prof: dict, scale: float, xscale: float) -> list[dict]
             if direction not in ("cw", "ccw"):
                 raise r.error(
                     f"{path}direction",
-                    f"unknown arc direction {direction!r}; expected 'cw' or 'ccw' (drawing frame: z right, x up)",
+                    f"unknown arc direction {direction!r}; "
+                    "expected 'cw' or 'ccw' (drawing frame: z right, x up)",
                     feature=fid,
                     value=direction,
                 )
@@ -237,7 +238,8 @@ def _features(r: _Reader, prof: dict, scale: float, xscale: float) -> list[dict]
             if r0 <= 0 or abs(r0 - r1) > 1e-6 * max(1.0, r0):
                 raise r.error(
                     f"{path}center",
-                    f"start and end are not equidistant from the centre (radii {r0:.6f} and {r1:.6f} mm)",
+                    "start and end are not equidistant from the centre "
+                    f"(radii {r0:.6f} and {r1:.6f} mm)",
                     feature=fid,
                 )
         elif math.dist(spec["p0"], spec["p1"]) == 0:
@@ -531,7 +533,8 @@ def load_study(path) -> Study:
             raise r.error(
                 "fit.fix",
                 f"cannot fix {item!r}: expected 'feature.parameter' with a feature of the profile "
-                f"and one of its parameters (line: offset, rotation; arc: center_x, center_z, radius)",
+                "and one of its parameters "
+                "(line: offset, rotation; arc: center_x, center_z, radius)",
                 feature=fid,
                 value=item,
             )
@@ -540,7 +543,8 @@ def load_study(path) -> Study:
         if item not in transform_names:
             raise r.error(
                 "fit.free_transform",
-                f"unknown transform parameter {item!r}; expected one of {', '.join(transform_names)}",
+                f"unknown transform parameter {item!r}; "
+                f"expected one of {', '.join(transform_names)}",
                 value=item,
             )
     fit = FitSettings(

@@ -1,0 +1,126 @@
+"""``piecs-bayes decide`` and ``piecs-bayes capability``: is compensation justified,
+and what is the process capable of.
+
+- ``decide STUDY --out DIR``: fit one part, decide per feature (compensate with a
+  gain, do not compensate, measure more) and write ``decisions.json`` and
+  ``decisions.csv``; the table is printed.
+- ``capability STUDY [--glob PATTERN] --out DIR``: fit every part of a run, write
+  ``capability.json``, ``capability.csv`` (one row per feature and index),
+  ``capability_summary.csv`` (one row per feature) and ``capability_parts.csv``
+  (values and control-chart flags per part); the tables are printed.
+
+Errors: bad input exits 2, a failed analysis exits 1 (mapped by ``cli.main``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["register"]
+
+EXAMPLES = {
+    "decide": "piecs-bayes decide data/demo/study.toml --out reports/decide",
+    "capability": "piecs-bayes capability data/batch/study.toml --out reports/capability\n"
+    '  piecs-bayes capability data/batch/study.toml --glob "part0*.csv" --out reports/first9',
+}
+
+
+def register(subparsers) -> None:
+    """Add ``decide`` and ``capability`` to the CLI's subparsers."""
+    from .cli import _add_common, _sub
+
+    p = _sub(
+        subparsers,
+        "decide",
+        "Decide per feature whether compensation is justified (verdict table, JSON and CSV).",
+    )
+    p.epilog = f"example:\n  {EXAMPLES['decide']}\n\nSettings: the study's [decision] table."
+    p.add_argument("study", type=Path, help="study file (TOML)")
+    p.add_argument(
+        "--method", choices=("lsq", "robust"), default=None, help="default: the study's fit.method"
+    )
+    p.add_argument("--part", default=None, help="part id when the probe data holds several parts")
+    p.add_argument(
+        "--at",
+        choices=("worst", "mid", "start", "end"),
+        default=None,
+        help="where the deviation is taken (default: the study's decision.characteristic, "
+        "else the worst of the feature's ends and mid-point)",
+    )
+    _add_common(p)
+    p.set_defaults(func=cmd_decide)
+
+    p = _sub(
+        subparsers,
+        "capability",
+        "Capability study over many parts: Cp, Cpk, Pp, Ppk with intervals, stability, "
+        "capability after compensation.",
+    )
+    p.epilog = f"example:\n  {EXAMPLES['capability']}\n\nSettings: the study's [capability] table."
+    p.add_argument("study", type=Path, help="study file (TOML)")
+    p.add_argument(
+        "--glob",
+        default=None,
+        help="probe files relative to the study's folder (default: the study's probe_files); "
+        "one file per part or a 'part' column; production order = sorted file names",
+    )
+    p.add_argument(
+        "--method", choices=("lsq", "robust"), default=None, help="default: the study's fit.method"
+    )
+    _add_common(p)
+    p.set_defaults(func=cmd_capability)
+
+
+def cmd_decide(args, console) -> int:
+    from .cli import _fit, _out_dir, _write
+    from .decisions import decide_study
+
+    study, fit = _fit(args, console)
+    table = decide_study(study, fit, characteristic=args.at)
+    console.step(f"decided {len(table.decisions)} features")
+    out = _out_dir(args, study)
+    written: list[Path] = []
+    _write(out, "decisions.json", table.to_json(), study, console, written)
+    _write(out, "decisions.csv", table.to_csv(), study, console, written)
+    console.say(table.text())
+    for p in written:
+        console.say(f"wrote {p}")
+    return 0
+
+
+def cmd_capability(args, console) -> int:
+    from .cli import _out_dir, _write
+    from .decisions import capability_study
+    from .errors import InputError
+    from .export import to_csv
+    from .pipeline import load_probe_data, load_study
+
+    study = load_study(args.study)
+    console.step(f"read {study!r}")
+    files = None
+    if args.glob is not None:
+        files = sorted(study.path.parent.glob(args.glob))
+        if not files:
+            raise InputError(
+                f"--glob {args.glob!r} matches no file in {study.path.parent}", value=args.glob
+            )
+    probe = load_probe_data(study, files)
+    n = len(probe.parts)
+    console.step(f"read {len(probe)} probe points of {n} parts")
+    every = max(1, n // 6)
+
+    def progress(i, total, part):
+        if i % every == 0 or i == total:
+            console.step(f"fitted {i}/{total} parts ({part})")
+
+    result = capability_study(study, probe, method=args.method, seed=args.seed, progress=progress)
+    out = _out_dir(args, study)
+    written: list[Path] = []
+    _write(out, "capability.json", result.to_json(), study, console, written)
+    _write(out, "capability.csv", to_csv(result.index_rows()), study, console, written)
+    _write(out, "capability_summary.csv", to_csv(result.summary_rows()), study, console, written)
+    _write(out, "capability_parts.csv", to_csv(result.part_rows()), study, console, written)
+    console.say(result.text())
+    for p in written:
+        console.say(f"wrote {p}")
+    return 0
