@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 export MPLBACKEND := Agg
 export JAX_PLATFORMS := cpu
 
-.PHONY: demo test lint clean venv
+.PHONY: demo test lint clean venv conformance
 
 venv: $(STAMP)
 
@@ -21,6 +21,15 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# Peer agreement with LinuxCNC's rs274 (Debian package linuxcnc-uspace): installs
+# it when missing, then runs the tests marked rs274 (they fail here if it is absent).
+conformance: $(STAMP)
+	@command -v rs274 >/dev/null || { \
+	  SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  $$SUDO apt-get update && $$SUDO apt-get install -y linuxcnc-uspace; }
+	@command -v rs274 >/dev/null || { echo "rs274 is still not installed" >&2; exit 1; }
+	$(BIN)/python -m pytest -q -m rs274 tests/test_gcode_rs274.py tests/test_gcode_cli.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check piecs_bayes tests

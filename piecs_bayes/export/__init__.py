@@ -22,6 +22,11 @@ from ._offsets import g10_linuxcnc as g10_linuxcnc
 from ._offsets import offsets_from_json as offsets_from_json
 from ._offsets import offsets_to_json as offsets_to_json
 from ._offsets import tool_offset_update as tool_offset_update
+from ._program import BlockChange as BlockChange
+from ._program import BlockMap as BlockMap
+from ._program import ProgramAdjustment as ProgramAdjustment
+from ._program import adjust_program as adjust_program
+from ._program import map_blocks_to_profile as map_blocks_to_profile
 from ._tables import band_csv as band_csv
 from ._tables import bounds_csv as bounds_csv
 from ._tables import bounds_json as bounds_json

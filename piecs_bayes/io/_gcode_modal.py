@@ -80,7 +80,9 @@ _REFUSED = {
     "G19": "only the XZ plane (G18) is supported for a lathe",
     "G93": "inverse-time feed (G93) is not supported",
 }
-# LinuxCNC's arc tolerances (interp_internal.hh), in mm.
+# Arc tolerances (mm): how far an R arc may fall short of its chord, and how much an
+# I/K arc's start and end radii may differ; chosen to accept what rs274 accepts
+# on the test corpus (0.00005 in; 0.01 mm or 0.001 in times sqrt(2), twice).
 _RADIUS_TOL_MM = 0.00005 * MM_PER_INCH
 _SPIRAL_ABS_MM = {"mm": 2 * 0.01 * math.sqrt(2), "in": 2 * 0.001 * math.sqrt(2) * MM_PER_INCH}
 _SPIRAL_REL = 0.001
@@ -432,21 +434,25 @@ class _Reader:
 
 
 def _center_from_r(reader, line, p0, p1, r, kind):
-    """LinuxCNC's ``arc_data_r`` in the drawing frame (z right, x up); negative R: > 180 deg."""
+    """Centre of an R-format arc from ``p0`` to ``p1`` (drawing frame: z right, x up).
+
+    The centre lies on the perpendicular bisector of the chord, $h =
+    \\sqrt{R^2 - (c/2)^2}$ from its mid-point: to the left of the chord for a
+    counter-clockwise arc of at most 180 degrees, to the right for a clockwise
+    one; a negative R asks for the arc over 180 degrees (the other side).
+    """
     (x0, z0), (x1, z1) = p0, p1
-    if (x0, z0) == (x1, z1):
+    dx, dz = x1 - x0, z1 - z0
+    chord = math.hypot(dx, dz)
+    if chord == 0.0:
         raise reader.err(line, "an R arc cannot start and end at the same point")
-    mx, mz = (x0 + x1) / 2, (z0 + z1) / 2
-    half = math.hypot(mx - x1, mz - z1)
     ar = abs(r)
-    if half - ar > _RADIUS_TOL_MM:
+    if chord / 2 - ar > _RADIUS_TOL_MM:
         raise reader.err(line, f"arc radius {ar:.4f} mm is too small to reach the end point")
-    if half / ar > 1 - 1e-12:
-        half = ar
-    chord = math.atan2(x1 - x0, z1 - z0)  # angle in the (z, x) frame
-    theta = chord - math.pi / 2 if (kind == "cw") == (r > 0) else chord + math.pi / 2
-    offset = ar * math.cos(math.asin(half / ar))
-    return (mx + offset * math.sin(theta), mz + offset * math.cos(theta))
+    h = math.sqrt(max(ar * ar - chord * chord / 4, 0.0))
+    left_x, left_z = dz / chord, -dx / chord  # unit normal, left of travel (drawing frame)
+    side = (1.0 if kind == "ccw" else -1.0) * (1.0 if r > 0 else -1.0)
+    return ((x0 + x1) / 2 + side * h * left_x, (z0 + z1) / 2 + side * h * left_z)
 
 
 def parse_gcode(

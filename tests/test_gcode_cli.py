@@ -1,0 +1,101 @@
+"""``piecs-bayes gcode nose-comp`` / ``gcode check``: outputs, exit codes, no overwrite."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from piecs_bayes import _cli_gcode
+from piecs_bayes.errors import AnalysisError, InputError
+from piecs_bayes.geometry import nose_compensate
+from piecs_bayes.io import read_gcode, read_tool_table
+from piecs_bayes.io._gcode_rs274 import rs274_path
+
+DATA = Path(__file__).parent / "data" / "gcode"
+PROGRAM = DATA / "01_od_dia_mm_t3_g42.ngc"
+TABLE = DATA / "tools.tbl"
+
+
+class _Console:
+    def __init__(self):
+        self.lines: list[str] = []
+
+    def say(self, msg: str) -> None:
+        self.lines.append(msg)
+
+    step = say
+
+
+def _run(argv):
+    parser = argparse.ArgumentParser(prog="piecs-bayes")
+    _cli_gcode.register(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(argv)
+    console = _Console()
+    return args.func(args, console), console
+
+
+def _main(argv):
+    from piecs_bayes.cli import main
+
+    return main(argv)
+
+
+def test_nose_comp_writes_the_library_result(tmp_path):
+    out = tmp_path / "out.ngc"
+    argv = ["gcode", "nose-comp", str(PROGRAM), "-o", str(out)]
+    rc, console = _run(argv + ["--tool-table", str(TABLE), "--tool-units", "in"])
+    assert rc == 0 and out.exists()
+    expected = nose_compensate(read_gcode(PROGRAM), tool_table=read_tool_table(TABLE, units="in"))
+    assert out.read_text() == expected.text
+    assert any("lines rewritten" in line for line in console.lines)
+    rc, _ = _run(argv + ["--nose-radius", "0.4", "--corner", "extend"])
+    assert rc == 0 and "G42 G1" not in out.read_text()
+
+
+def test_nose_comp_errors(tmp_path):
+    out = tmp_path / "out.ngc"
+    with pytest.raises(InputError, match="tool table"):
+        _run(["gcode", "nose-comp", str(PROGRAM), "-o", str(out)])
+    with pytest.raises(AnalysisError, match="concave corner"):
+        gouge = DATA / "gouge" / "g02_groove_too_narrow.ngc"
+        _run(["gcode", "nose-comp", str(gouge), "-o", str(out), "--nose-radius", "0.4"])
+    copy = tmp_path / "in.ngc"
+    copy.write_bytes(PROGRAM.read_bytes())
+    with pytest.raises(InputError, match="refusing to overwrite"):
+        _run(["gcode", "nose-comp", str(copy), "-o", str(copy), "--nose-radius", "0.4"])
+    assert copy.read_bytes() == PROGRAM.read_bytes()
+
+
+def test_exit_codes_through_main(tmp_path, capsys):
+    try:
+        from piecs_bayes.cli import build_parser
+
+        build_parser().parse_args(["gcode", "check", str(PROGRAM)])
+    except SystemExit:
+        pytest.skip("the gcode commands are not wired into piecs_bayes.cli")
+    out = str(tmp_path / "o.ngc")
+    assert _main(["gcode", "nose-comp", str(PROGRAM), "-o", out, "-q"]) == 2
+    gouge = str(DATA / "gouge" / "g02_groove_too_narrow.ngc")
+    assert _main(["gcode", "nose-comp", gouge, "-o", out, "--nose-radius", "0.4"]) == 1
+    assert _main(["gcode", "nose-comp", str(PROGRAM), "-o", out, "--nose-radius", "0.4"]) == 0
+    err = capsys.readouterr().err
+    assert "g02_groove_too_narrow.ngc:10" in err
+
+
+def test_check_prints_what_was_read():
+    rc, console = _run(["gcode", "check", str(PROGRAM), "--nose-radius", "0.4"])
+    assert rc == 0
+    text = "\n".join(console.lines)
+    assert "G42 nose on the right of travel" in text
+    assert "feed  to (x=10.0000, z=-15.0000) mm radius [G42]" in text
+    assert "compensated path: 15 moves" in text
+
+
+@pytest.mark.rs274
+@pytest.mark.skipif(rs274_path() is None, reason="LinuxCNC's rs274 is not installed")
+def test_check_against_rs274():
+    argv = ["gcode", "check", str(PROGRAM), "--tool-table", str(TABLE), "--tool-units", "in"]
+    rc, console = _run(argv + ["--rs274"])
+    assert rc == 0 and "rs274 agrees: 15 canonical moves" in console.lines[-1]
