@@ -87,6 +87,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--gain", type=float, default=None, help="feedback gain in [0, 1] (default: the study's)"
     )
+    p.add_argument(
+        "--program-out",
+        type=Path,
+        default=None,
+        help="write the adjusted part program here (and FILE.diff); never the input",
+    )
+    p.add_argument(
+        "--nose-radius",
+        type=float,
+        default=None,
+        help="tool-nose radius (mm) for the gouge check (default: the study's [program])",
+    )
     _add_common(p)
     p.set_defaults(func=cmd_compensate)
 
@@ -256,6 +268,14 @@ def cmd_compensate(args, console) -> int:
     written += files.written
     for line in files.lines():
         console.say(line)
+    if args.program_out is not None:
+        from .pipeline import adjust_study_program
+
+        adj = adjust_study_program(study, path, nose_radius=args.nose_radius)
+        console.step(f"adjusted program: {adj!r}")
+        _write(args.program_out.parent, args.program_out.name, adj.text, study, console, written)
+        diff = args.program_out.with_name(args.program_out.name + ".diff")
+        _write(diff.parent, diff.name, adj.diff, study, console, written)
     for p in written:
         console.say(f"wrote {p}")
     return 0

@@ -6,14 +6,18 @@ immutable results that print well and that the writers in :mod:`.export` read.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from .compensate import AdjustedPath, adjusted_path
 from .errors import InputError
 from .fit import ProfileFit, fit_profile, fit_profile_joint
 from .fit._features import to_part_frame
 from .fit._robust import TUNING
 from .io import ProbeData, Study, load_study, read_probe_csv
+
+if TYPE_CHECKING:  # compensate pulls in scipy (~0.6 s): imported where it is used
+    from .compensate import AdjustedPath
 
 __all__ = [
     "load_probe_data",
@@ -25,6 +29,7 @@ __all__ = [
     "bayes_study",
     "toolpath_uncertainty",
     "pooled_sigma",
+    "adjust_study_program",
 ]
 
 
@@ -136,6 +141,8 @@ def fit_study(
 
 def compensate_study(study: Study, fit: ProfileFit, *, gain=None) -> AdjustedPath:
     """Mirror a fit into the adjusted tool path, with the study's gain and limit."""
+    from .compensate import adjusted_path
+
     return adjusted_path(
         study.profile,
         fit.deviations,
@@ -267,3 +274,38 @@ def toolpath_uncertainty(
     if bayes is not None:
         mc = monte_carlo_toolpath(study.profile, bayes.deviation_samples, gain=gain, grid=lin.grid)
     return {"linearised": lin, "monte_carlo": mc}
+
+
+def adjust_study_program(study: Study, path: AdjustedPath, *, nose_radius=None, tool_table=None):
+    """Rewrite the study's part program for the adjusted tool path (PIECS option 2).
+
+    Finish-cut blocks are mapped to profile features by geometry (or by the
+    study's ``[program] mapping``); only their coordinate words change, every
+    other line stays byte-identical. Refuses (``AnalysisError``) a change above
+    ``compensation.max_correction``, a block that cannot be mapped, or a
+    result that gouges with the nose radius (``nose_radius`` mm, else the
+    study's ``[program] nose_radius``, else the tool table's).
+
+    **Returns:** a ``ProgramAdjustment`` (``.text``, ``.diff``, ``.changes``).
+    """
+    from .export import adjust_program
+    from .io import read_tool_table
+
+    if study.program is None:
+        raise InputError(
+            "the study names no part program (study.part_program)", file=str(study.path)
+        )
+    ps = study.program_settings
+    table = tool_table if tool_table is not None else ps.tool_table
+    if table is not None and not hasattr(table, "get"):
+        table = read_tool_table(table)
+    return adjust_program(
+        study.program,
+        study.profile,
+        path.profile,
+        max_correction_mm=study.compensation.max_correction,
+        mapping=dict(ps.mapping) or None,
+        tol_mm=ps.tolerance,
+        tool_table=table,
+        nose_radius_mm=nose_radius if nose_radius is not None else ps.nose_radius,
+    )

@@ -89,6 +89,19 @@ class CompensationSettings:
     max_correction: float = 0.2
 
 
+@dataclass(frozen=True)
+class ProgramSettings:
+    """How the part program is adjusted: the tool-nose radius (mm) or a LinuxCNC
+    tool table for the gouge check, an explicit ``{feature id: (line, ...)}``
+    mapping of finish-cut blocks (overrides the mapping by geometry) and the
+    distance (mm) within which a block counts as lying on a feature."""
+
+    nose_radius: float | None = None
+    tool_table: Path | None = None
+    mapping: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    tolerance: float = 0.01
+
+
 @dataclass(frozen=True, eq=False)
 class Study:
     """One compensation job, validated, in mm and radius X."""
@@ -109,6 +122,7 @@ class Study:
     capability: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     offsets: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     errspec: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    program_settings: ProgramSettings = field(default_factory=ProgramSettings)
 
     def __repr__(self) -> str:
         return (
@@ -570,10 +584,14 @@ def load_study(path) -> Study:
         * scale,
     )
     probe_files, program = _files(r, study, path.parent)
+    program_settings = _program_settings(
+        r, r.table(tree, "program", ""), scale, profile, path.parent
+    )
     job = {
         name: MappingProxyType(_job_section(r, tree, name, scale, profile)) for name in _JOB_KEYS
     }
-    known = {"study", "profile", "probe", "machine", "uncertainty", "fit", "compensation", *job}
+    known = {"study", "profile", "probe", "machine", "uncertainty", "fit", "compensation"}
+    known |= {"program", *job}
     extra = {k: v for k, v in tree.items() if k not in known}
     return Study(
         path=path,
@@ -588,5 +606,54 @@ def load_study(path) -> Study:
         fit=fit,
         compensation=comp,
         sections=MappingProxyType(extra),
+        program_settings=program_settings,
         **job,
+    )
+
+
+def _program_settings(r: _Reader, tree: dict, scale: float, profile, base: Path) -> ProgramSettings:
+    nose = (
+        r.number(tree, "nose_radius", "program.", positive=True) * scale
+        if "nose_radius" in tree
+        else None
+    )
+    table = tree.get("tool_table")
+    if table is not None:
+        if not isinstance(table, str):
+            raise r.error("program.tool_table", f"expected a file name, got {table!r}", value=table)
+        table = base / table
+        if not table.is_file():
+            raise r.error("program.tool_table", f"tool table not found: {table}", value=str(table))
+    mapping = tree.get("mapping", {})
+    if not isinstance(mapping, dict):
+        raise r.error(
+            "program.mapping", f"expected a table {{feature = [line, ...]}}, got {mapping!r}"
+        )
+    clean = {}
+    for fid, lines in mapping.items():
+        if fid not in profile.ids:
+            raise r.error(
+                f"program.mapping.{fid}",
+                f"unknown feature id {fid!r}; the profile has {', '.join(profile.ids)}",
+                feature=fid,
+            )
+        if isinstance(lines, int) and not isinstance(lines, bool):
+            lines = [lines]
+        if (
+            not isinstance(lines, list)
+            or not lines
+            or not all(isinstance(x, int) and not isinstance(x, bool) and x > 0 for x in lines)
+        ):
+            raise r.error(
+                f"program.mapping.{fid}",
+                f"expected program line numbers (positive integers), got {lines!r}",
+                feature=fid,
+                value=lines,
+            )
+        clean[fid] = tuple(lines)
+    return ProgramSettings(
+        nose_radius=nose,
+        tool_table=table,
+        mapping=MappingProxyType(clean),
+        tolerance=r.number(tree, "tolerance", "program.", 0.01 / scale, positive=True) * scale,
     )
