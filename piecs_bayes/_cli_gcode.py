@@ -37,6 +37,10 @@ def register(subparsers) -> None:
         help="Write the program with G41/G42/G40 resolved (no compensation words).",
         description="Resolve tool-nose radius compensation into the controlled point's path "
         "(LinuxCNC conventions for side and tool orientation) and write an equivalent program.",
+        epilog="example:\n  piecs-bayes gcode nose-comp data/demo/finish.ngc "
+        "-o reports/finish_nc.ngc "
+        "--nose-radius 0.4 --corner extend",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     n.add_argument("program", type=Path, help="input part program (.ngc/.nc)")
     n.add_argument("-o", "--output", type=Path, required=True, help="output program")
@@ -50,7 +54,14 @@ def register(subparsers) -> None:
     _common(n)
     n.set_defaults(func=cmd_nose_comp)
 
-    c = sub.add_parser("check", help="Read a program and print what was understood.")
+    c = sub.add_parser(
+        "check",
+        help="Read a program and print what was understood.",
+        description="Read a program and print what was understood: modes, moves, "
+        "compensation runs.",
+        epilog="example:\n  piecs-bayes gcode check data/demo/finish.ngc --nose-radius 0.4",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     c.add_argument("program", type=Path, help="part program (.ngc/.nc)")
     c.add_argument(
         "--rs274",

@@ -63,7 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="piecs-bayes",
         description="Uncertainty-aware process-intermittent error compensation for turning.",
-        epilog="Exit codes: 0 ok, 1 analysis failed, 2 bad input. See docs/formats.md for the files.",
+        epilog=(
+            "Exit codes: 0 ok, 1 analysis failed, 2 bad input. See docs/formats.md for the files."
+        ),
     )
     parser.add_argument("--version", action="version", version=f"piecs-bayes {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -72,8 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = _sub(sub, "fit", "Fit each feature's deviation from the probe points; write JSON and CSV.")
     p.add_argument("study", type=Path, help="study file (TOML)")
     p.add_argument(
-        "--method", choices=("lsq", "robust"), default=None, help="default: the study's fit.method"
+        "--method",
+        choices=("lsq", "robust", "bayes"),
+        default=None,
+        help="default: the study's fit.method; bayes: robust fit, then the posterior (emcee)",
     )
+    p.add_argument("--steps", type=int, default=None, help="bayes: MCMC steps per ensemble")
     p.add_argument("--part", default=None, help="part id when the probe data holds several parts")
     _add_common(p)
     p.set_defaults(func=cmd_fit)
@@ -82,8 +88,14 @@ def build_parser() -> argparse.ArgumentParser:
         sub, "compensate", "Fit, mirror the deviations and write the adjusted tool-path vertices."
     )
     p.add_argument("study", type=Path, help="study file (TOML)")
-    p.add_argument("--method", choices=("lsq", "robust"), default=None)
-    p.add_argument("--part", default=None)
+    p.add_argument(
+        "--method",
+        choices=("lsq", "robust", "bayes"),
+        default=None,
+        help="default: the study's fit.method; bayes adds Monte Carlo bounds from the posterior",
+    )
+    p.add_argument("--steps", type=int, default=None, help="bayes: MCMC steps per ensemble")
+    p.add_argument("--part", default=None, help="part id when the probe data holds several parts")
     p.add_argument(
         "--gain", type=float, default=None, help="feedback gain in [0, 1] (default: the study's)"
     )
@@ -108,8 +120,17 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(p)
     p.set_defaults(func=cmd_simulate)
 
-    p = _sub(sub, "demo", "Run the main job on a study end to end and list what it wrote.")
+    p = _sub(
+        sub,
+        "demo",
+        "Run the main job on a study end to end (robust and Bayesian fit, decisions, adjusted "
+        "tool path with bounds, adjusted program, error spec, tool offsets, report) and list "
+        "what it wrote.",
+    )
     p.add_argument("study", type=Path, help="study file (TOML)")
+    from ._cli_report import job_options
+
+    job_options(p)
     _add_common(p)
     p.set_defaults(func=cmd_demo)
 
@@ -122,7 +143,7 @@ def _plugins():
     """Command groups that live in their own modules (``register(subparsers)``)."""
     import importlib
 
-    for name in ("_cli_gcode", "_cli_decide"):
+    for name in ("_cli_gcode", "_cli_decide", "_cli_report"):
         try:
             yield importlib.import_module(f".{name}", __package__)
         except ModuleNotFoundError as exc:
@@ -163,7 +184,8 @@ def _bayes(args, study, fit, console):
     bayes = bayes_study(study, fit, nsteps=args.steps, seed=args.seed, progress=not args.quiet)
     post = bayes.posterior
     console.step(
-        f"posterior: {len(bayes.names)} parameters, {'converged' if post.converged else 'NOT converged'}, "
+        f"posterior: {len(bayes.names)} parameters, "
+        f"{'converged' if post.converged else 'NOT converged'}, "
         f"{post.ess_per_second:.0f} effective samples/s"
     )
     return bayes
@@ -219,14 +241,22 @@ def cmd_fit(args, console) -> int:
 
 
 def _write_bounds(out, study, fit, bayes, gain, console, written):
-    from .export import band_csv, bounds_csv, bounds_json, budget_csv
     from .pipeline import toolpath_uncertainty
 
     unc = toolpath_uncertainty(study, fit, bayes=bayes, gain=gain)
+    for tpu in unc.values():
+        if tpu is not None:
+            console.step(f"tool-path bounds: {tpu!r}")
+    _write_unc(out, study, unc, console, written)
+    return unc
+
+
+def _write_unc(out, study, unc, console, written):
+    from .export import band_csv, bounds_csv, bounds_json, budget_csv
+
     for key, tpu in unc.items():
         if tpu is None:
             continue
-        console.step(f"tool-path bounds: {tpu!r}")
         suffix = "" if key == "linearised" else "_mc"
         _write(out, f"toolpath_bounds{suffix}.csv", bounds_csv(tpu), study, console, written)
         _write(
@@ -241,7 +271,6 @@ def _write_bounds(out, study, fit, bayes, gain, console, written):
         written,
     )
     _write(out, "toolpath_bounds.json", bounds_json(unc, study.profile), study, console, written)
-    return unc
 
 
 def cmd_compensate(args, console) -> int:
@@ -294,21 +323,49 @@ def cmd_simulate(args, console) -> int:
 
 
 def cmd_demo(args, console) -> int:
-    from .export import path_csv
-    from .pipeline import compensate_study
+    """The main job end to end: every results table, the machine files and the report."""
+    from ._cli_report import run_job_from_args, write_report
+    from .decisions import write_compensation_outputs
+    from .export import path_csv, write_text_atomic
 
     console.say(f"piecs-bayes demo on {args.study}")
-    study, fit = _fit(
-        args := argparse.Namespace(**{**vars(args), "method": "robust", "part": None}), console
-    )
+    res = run_job_from_args(args, console)
+    study, fit = res.study, res.fit
     _print_fit(fit, console)
-    path = compensate_study(study, fit)
-    console.step(f"adjusted tool path: {path!r}")
     out = _out_dir(args, study)
     written: list[Path] = []
     _write_fit(out, study, fit, console, written)
-    _write(out, "toolpath.csv", path_csv(path), study, console, written)
-    console.say("\nOutputs:")
+    if res.bayes is not None:
+        _write_bayes(out, study, res.bayes, console, written)
+        console.say(res.bayes.posterior.summary())
+    if res.decisions is not None:
+        _write(out, "decisions.json", res.decisions.to_json(), study, console, written)
+        _write(out, "decisions.csv", res.decisions.to_csv(), study, console, written)
+        console.say(res.decisions.text())
+    if res.path is not None:
+        _write(out, "toolpath.csv", path_csv(res.path), study, console, written)
+    if res.uncertainty is not None:
+        _write_unc(out, study, res.uncertainty, console, written)
+    if res.program is not None:
+        inputs = [f.path for f in res.inputs]
+        stem, suffix = study.program.stem, study.program.suffix
+        for name, text in (
+            (f"{stem}_adjusted{suffix}", res.program.text),
+            (f"{stem}.diff", res.program.diff),
+        ):
+            written.append(write_text_atomic(out / name, text, protect=inputs))
+        console.say(res.program.diff)
+    if res.errspec is not None:
+        files = write_compensation_outputs(  # error spec, LinuxCNC tables, tool offsets
+            study, fit, out, gain=dict(res.gains), protect=[f.path for f in res.inputs]
+        )
+        written += files.written
+        for line in files.lines():
+            console.say(line)
+    write_report(res, out, console, written)
+    for step, why in res.unavailable.items():
+        console.say(f"{step}: not available: {why}")
+    console.step(f"done; outputs in {out}:")
     for p in written:
         console.say(f"  {p}")
     return 0

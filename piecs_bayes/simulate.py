@@ -296,6 +296,9 @@ bayes_steps = 8000             # MCMC steps per ensemble (4 ensembles; 50 tau)
 [compensation]
 gain = 1.0
 max_correction = 0.1
+
+[program]
+nose_radius = 0.4             # finish tool T0202: nose radius for the gouge check (mm)
 """
 
 

@@ -201,8 +201,14 @@ def test_ball_too_big_for_a_concave_fillet(tmp_path):
 @pytest.mark.parametrize(
     "section, pattern",
     [
-        ("[program]\nmapping = { bore = [70] }\n", r"program\.mapping\.bore, feature 'bore'|feature 'bore': program\.mapping\.bore: unknown feature id 'bore'"),
-        ("[program]\nmapping = { dia = [0] }\n", r"program\.mapping\.dia: expected program line numbers \(positive integers\), got \[0\]"),
+        (
+            "[program]\nmapping = { bore = [70] }\n",
+            r"program\.mapping\.bore, feature 'bore'|feature 'bore': program\.mapping\.bore: unknown feature id 'bore'",
+        ),
+        (
+            "[program]\nmapping = { dia = [0] }\n",
+            r"program\.mapping\.dia: expected program line numbers \(positive integers\), got \[0\]",
+        ),
         ("[program]\nnose_radius = -0.4\n", r"program\.nose_radius: must be > 0, got -0\.4"),
         ('[program]\ntool_table = "none.tbl"\n', r"program\.tool_table: tool table not found"),
     ],
@@ -213,6 +219,10 @@ def test_bad_program_settings_are_named(tmp_path, section, pattern):
 
 
 def test_program_settings_are_read(tmp_path):
-    study = load_study(write_study(tmp_path, extra="\n[program]\nnose_radius = 0.4\nmapping = { dia = [70, 80] }\n"))
+    study = load_study(
+        write_study(
+            tmp_path, extra="\n[program]\nnose_radius = 0.4\nmapping = { dia = [70, 80] }\n"
+        )
+    )
     assert study.program_settings.nose_radius == pytest.approx(0.4)
     assert dict(study.program_settings.mapping) == {"dia": (70, 80)}

@@ -17,7 +17,17 @@ def _words(line: str):
 
 def test_adjusted_demo_program_changes_only_finish_cut_coordinates(tmp_path):
     out = tmp_path / "finish_adjusted.ngc"
-    rc = main(["compensate", str(DEMO / "study.toml"), "--out", str(tmp_path), "--quiet", "--program-out", str(out)])
+    rc = main(
+        [
+            "compensate",
+            str(DEMO / "study.toml"),
+            "--out",
+            str(tmp_path),
+            "--quiet",
+            "--program-out",
+            str(out),
+        ]
+    )
     assert rc == 0
     before = (DEMO / "finish.ngc").read_text().splitlines(keepends=True)
     after = out.read_text().splitlines(keepends=True)
@@ -46,13 +56,38 @@ def test_program_out_never_overwrites_the_input_and_refuses_large_corrections(tm
     for name in ("study.toml", "probe_part01.csv", "finish.ngc"):
         shutil.copy(DEMO / name, tmp_path / name)
     original = (tmp_path / "finish.ngc").read_bytes()
-    rc = main(["compensate", str(tmp_path / "study.toml"), "--out", str(tmp_path / "o"), "--quiet",
-               "--program-out", str(tmp_path / "finish.ngc")])
+    rc = main(
+        [
+            "compensate",
+            str(tmp_path / "study.toml"),
+            "--out",
+            str(tmp_path / "o"),
+            "--quiet",
+            "--program-out",
+            str(tmp_path / "finish.ngc"),
+        ]
+    )
     assert rc == 2 and "refusing to overwrite an input file" in capsys.readouterr().err
     assert (tmp_path / "finish.ngc").read_bytes() == original
-    text = (tmp_path / "study.toml").read_text().replace("max_correction = 0.1", "max_correction = 0.005")
+    text = (
+        (tmp_path / "study.toml")
+        .read_text()
+        .replace("max_correction = 0.1", "max_correction = 0.005")
+    )
     (tmp_path / "study.toml").write_text(text)
-    rc = main(["compensate", str(tmp_path / "study.toml"), "--out", str(tmp_path / "o2"), "--quiet",
-               "--program-out", str(tmp_path / "new.ngc")])
-    assert rc == 1 and "more than the configured maximum correction 0.005 mm" in capsys.readouterr().err
+    rc = main(
+        [
+            "compensate",
+            str(tmp_path / "study.toml"),
+            "--out",
+            str(tmp_path / "o2"),
+            "--quiet",
+            "--program-out",
+            str(tmp_path / "new.ngc"),
+        ]
+    )
+    assert (
+        rc == 1
+        and "more than the configured maximum correction 0.005 mm" in capsys.readouterr().err
+    )
     assert not (tmp_path / "new.ngc").exists()

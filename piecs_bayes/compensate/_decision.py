@@ -452,6 +452,12 @@ def _evaluate(m0, s0, samples, tol, st: DecisionSettings, k, band, max_corr, t) 
     if loss_b >= loss_0:
         c_b, loss_b = 0.0, loss_0
     g_b = -c_b / m0 if c_b != 0.0 and m0 != 0.0 else 0.0
+    if not 0.0 <= g_b <= 1.0:
+        # PIECS gains live in [0, 1]: an optimum outside (a hair above 1 by rounding,
+        # or a real overshoot) is clipped and its correction and loss recomputed.
+        g_b = min(max(g_b, 0.0), 1.0)
+        c_b = -g_b * m0
+        loss_b = float(_loss(c_b, post, tol, st, k, c_b != 0.0)[0])
     bayes = ActionLoss("bayes", g_b, c_b, loss_b, abs(c_b) > max_corr)
     actions.append(bayes)
     kw = dict(coverage_factor=st.coverage_factor, guard_band_factor=st.guard_band_factor)

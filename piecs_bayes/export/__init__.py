@@ -13,6 +13,15 @@ from ._errspec import read_linuxcnc_comp as read_linuxcnc_comp
 from ._errspec import validate_linuxcnc_comp as validate_linuxcnc_comp
 from ._errspec import write_errspec as write_errspec
 from ._errspec import write_linuxcnc_comp as write_linuxcnc_comp
+from ._figures import budget_figure as budget_figure
+from ._figures import capability_chart_figure as capability_chart_figure
+from ._figures import capability_index_figure as capability_index_figure
+from ._figures import corner_figure as corner_figure
+from ._figures import diagnostics_figure as diagnostics_figure
+from ._figures import offset_figure as offset_figure
+from ._figures import profile_figure as profile_figure
+from ._figures import residuals_figure as residuals_figure
+from ._figures import trace_figure as trace_figure
 from ._offsets import AxisCorrection as AxisCorrection
 from ._offsets import OffsetSettings as OffsetSettings
 from ._offsets import ToolOffsets as ToolOffsets
@@ -27,6 +36,9 @@ from ._program import BlockMap as BlockMap
 from ._program import ProgramAdjustment as ProgramAdjustment
 from ._program import adjust_program as adjust_program
 from ._program import map_blocks_to_profile as map_blocks_to_profile
+from ._report import report_files as report_files
+from ._report import report_html as report_html
+from ._report import report_pdf as report_pdf
 from ._tables import band_csv as band_csv
 from ._tables import bounds_csv as bounds_csv
 from ._tables import bounds_json as bounds_json

@@ -25,6 +25,12 @@ def _check(path: Path, protect: Iterable[str | os.PathLike] | None) -> None:
             )
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def write_bytes_atomic(path, data: bytes, *, protect=None) -> Path:
     """Write ``data`` to ``path`` atomically (parents created). Returns the path."""
     path = Path(path)
@@ -36,6 +42,7 @@ def write_bytes_atomic(path, data: bytes, *, protect=None) -> Path:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs are to be shared
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -536,6 +536,15 @@ def load_study(path) -> Study:
         known_sigma=bool(ft.get("known_sigma", False)),
         min_points_line=int(r.number(ft, "min_points_line", "fit.", 3.0, positive=True)),
         min_points_arc=int(r.number(ft, "min_points_arc", "fit.", 4.0, positive=True)),
+        likelihood=r.choice(ft, "likelihood", "fit.", ("gaussian", "student_t"), "gaussian"),
+        nu=r.number(ft, "nu", "fit.", 4.0, positive=True),
+        bayes_steps=int(r.number(ft, "bayes_steps", "fit.", 6000.0, positive=True)),
+        bayes_walkers=(
+            int(r.number(ft, "bayes_walkers", "fit.", positive=True))
+            if "bayes_walkers" in ft
+            else None
+        ),
+        bayes_ensembles=int(r.number(ft, "bayes_ensembles", "fit.", 4.0, positive=True)),
     )
     for key in ("fix", "free_transform"):
         val = ft.get(key, [])

@@ -1,0 +1,300 @@
+"""The job report: run_job's bundle, the self-contained HTML, the PDF pages, the CLI.
+
+One short (not converged, on purpose: fast) Bayesian run of the demo part is shared
+by the module; the convergence warning it raises is expected and filtered.
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import io
+import shutil
+from html.parser import HTMLParser
+from pathlib import Path
+from types import MappingProxyType
+
+import pytest
+from pypdf import PdfReader
+
+from piecs_bayes.cli import main
+from piecs_bayes.export import report_files, report_html
+from piecs_bayes.export._report import SECTIONS
+from piecs_bayes.workflow import JobResults, run_job
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+DEMO = DATA / "demo" / "study.toml"
+BATCH = DATA / "batch" / "study.toml"
+PNG = b"\x89PNG\r\n\x1a\n"
+
+#: figures each section must embed for the demo part (Bayesian run, one part)
+DEMO_FIGURES = {
+    "summary": 0,
+    "profile": 2,
+    "residuals": 1,
+    "posterior": 3,
+    "budget": 1,
+    "capability": 0,
+    "program": 0,
+    "errspec": 0,
+    "inputs": 0,
+}
+
+
+class _Sections(HTMLParser):
+    """Collects, per <section id>, its heading, text, <img> sources and external links."""
+
+    def __init__(self):
+        super().__init__()
+        self.order: list[str] = []
+        self.imgs: dict[str, list[str]] = {}
+        self.text: dict[str, list[str]] = {}
+        self.external: list[str] = []
+        self.current = None
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "section":
+            self.current = a["id"]
+            self.order.append(self.current)
+            self.imgs[self.current] = []
+            self.text[self.current] = []
+        if tag == "img" and self.current:
+            self.imgs[self.current].append(a["src"])
+        for key in ("src", "href"):
+            v = a.get(key, "")
+            if v and not (v.startswith("data:") or v.startswith("#")):
+                self.external.append(v)
+        if tag in ("link", "script"):
+            self.external.append(tag)
+
+    def handle_endtag(self, tag):
+        if tag == "section":
+            self.current = None
+
+    def handle_data(self, data):
+        if self.current:
+            self.text[self.current].append(data)
+
+
+def _parse(text: str) -> _Sections:
+    p = _Sections()
+    p.feed(text)
+    return p
+
+
+@pytest.fixture(scope="module")
+def demo_results():
+    import warnings
+
+    from piecs_bayes.fit import ConvergenceWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        return run_job(DEMO, nsteps=400, seed=1, nose_radius=0.4)
+
+
+@pytest.fixture(scope="module")
+def demo_report(demo_results):
+    return report_files(demo_results)
+
+
+def test_bundle_is_immutable_and_complete(demo_results):
+    res = demo_results
+    assert isinstance(res, JobResults)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.fit = None  # type: ignore[misc]
+    for name in ("gains", "unavailable", "versions", "settings", "timings"):
+        assert isinstance(getattr(res, name), MappingProxyType), name
+    assert res.bayes is not None and res.decisions is not None and res.program is not None
+    assert res.uncertainty["monte_carlo"] is not None
+    assert res.errspec is not None and res.offsets is not None
+    assert set(res.unavailable) == {"capability"}  # one part only
+    assert "1 part" in res.unavailable["capability"]
+    # the decisions' gains drive the path: face_end is not compensated on the demo part
+    assert res.gains["face_end"] == 0.0 and res.gains["dia_24"] == 1.0
+    assert 0.0 <= min(res.gains.values()) and max(res.gains.values()) <= 1.0
+    roles = [f.role for f in res.inputs]
+    assert roles == ["study", "probe", "program"]
+    assert all(len(f.sha256) == 64 for f in res.inputs)
+    assert res.versions["piecs_bayes"] and res.versions["python"]
+    rows = res.summary_rows()
+    assert [r["feature"] for r in rows] == list(res.study.profile.ids)
+    for r in rows:  # U = 2u, Bayesian estimate beside the robust one
+        assert r["U_um"] == pytest.approx(2 * r["u_um"])
+        assert abs(r["bayes_um"] - r["deviation_um"]) < 2 * r["U_um"]
+    assert "face_end" in repr(res) and "<table>" in res._repr_html_()
+
+
+def test_html_is_self_contained_with_every_section_and_figure(demo_report, demo_results):
+    text, _ = demo_report
+    p = _parse(text)
+    assert p.order == [sid for sid, _ in SECTIONS]
+    assert p.external == []
+    for sid, n in DEMO_FIGURES.items():
+        assert len(p.imgs[sid]) == n, sid
+        for src in p.imgs[sid]:
+            assert src.startswith("data:image/png;base64,")
+            assert base64.b64decode(src.split(",", 1)[1])[:8] == PNG
+    body = {sid: " ".join(t) for sid, t in p.text.items()}
+    assert "deviation ± U (µm, k=2)" in body["summary"]
+    assert "compensate" in body["summary"] and "do not compensate" in body["summary"]
+    assert "NOT converged" in body["summary"]  # 400 steps: said, not hidden
+    assert "R-hat" in body["posterior"] and "ESS" in body["posterior"]
+    assert "repeatability (%)" in body["budget"]
+    assert "No capability study" in body["capability"]
+    assert "N70 G1 X24.000 Z-30.000" in body["program"]  # the diff's removed line
+    assert "x_radius" in body["errspec"] and "Tool-offset" in body["errspec"]
+    for f in demo_results.inputs:
+        assert f.sha256 in body["inputs"]
+    assert "piecs-bayes report" in body["inputs"]
+
+
+def test_pdf_has_the_expected_pages(demo_report):
+    _, pdf = demo_report
+    assert pdf[:5] == b"%PDF-"
+    reader = PdfReader(io.BytesIO(pdf))
+    texts = [page.extract_text() for page in reader.pages]
+    figures = sum(DEMO_FIGURES.values())
+    text_pages = sum(1 for t in texts if "piecs_bayes report ·" in t)
+    assert len(texts) == figures + text_pages
+    # every section heads at least one page, in order
+    first = []
+    for k, (_, title) in enumerate(SECTIONS, start=1):
+        pages = [i for i, t in enumerate(texts) if f"{k}. {title}" in t]
+        assert pages, title
+        first.append(pages[0])
+    assert first == sorted(first)
+    joined = "\n".join(texts)
+    for label in (
+        "Z (mm, along the spindle axis)",
+        "X (mm, radius)",
+        "normal offset from nominal (µm",
+        "residual (µm)",
+        "τ (steps)",
+        "ESS (draws)",
+        "share of the variance (%)",
+        "exaggerated × ",
+    ):
+        assert label in joined, label
+
+
+def test_sections_say_why_a_step_is_unavailable(tmp_path):
+    """No Bayesian fit, and a program with a block off the profile: the job goes
+    on, and the report says why each section is empty."""
+    for name in ("study.toml", "probe_part01.csv"):
+        shutil.copy(DATA / "demo" / name, tmp_path / name)
+    prog = (DATA / "demo" / "finish.ngc").read_text()
+    prog = prog.replace(
+        "N90 G1 X30.000 Z-57.000\n", "N85 G1 X31.000 Z-50.000\nN90 G1 X30.000 Z-57.000\n"
+    )
+    (tmp_path / "finish.ngc").write_text(prog)
+    res = run_job(tmp_path / "study.toml", bayes=False, errspec=False, progress=False)
+    assert res.bayes is None and "bayes" in res.skipped
+    assert "lies on no profile feature" in res.unavailable["program"]
+    assert res.errspec is None and "errspec" in res.skipped
+    assert res.path is not None and res.uncertainty["monte_carlo"] is None
+    p = _parse(report_html(res))
+    body = {sid: " ".join(t) for sid, t in p.text.items()}
+    assert "No Bayesian fit" in body["posterior"] and p.imgs["posterior"] == []
+    assert "lies on no profile feature" in body["program"]
+    assert "No error specification" in body["errspec"]
+    assert len(p.imgs["profile"]) == 2 and len(p.imgs["budget"]) == 1
+
+
+def test_capability_section_with_several_parts():
+    files = sorted((DATA / "batch").glob("part*.csv"))[:8]
+    res = run_job(
+        BATCH,
+        bayes=False,
+        program=False,
+        capability_files=files,
+        progress=False,
+    )
+    assert res.capability is not None and len(res.capability.parts) == 8
+    assert [f.role for f in res.inputs].count("probe (capability)") == 8
+    p = _parse(report_html(res))
+    body = " ".join(p.text["capability"])
+    assert len(p.imgs["capability"]) == 2
+    assert "Cpk" in body and "part01" in body
+
+
+def test_progress_lines_go_to_a_callable():
+    lines: list[str] = []
+    run_job(
+        DEMO,
+        bayes=False,
+        uncertainty=False,
+        program=False,
+        errspec=False,
+        decisions=False,
+        capability=False,
+        progress=lines.append,
+    )
+    assert lines[0].startswith("read ") and lines[-1] == "done"
+    assert any(line.startswith("fitted 7 features") for line in lines)
+
+
+def test_cli_report_writes_both_files_and_exit_codes(tmp_path, capsys):
+    out = tmp_path / "rep"
+    assert main(["report", str(DEMO), "--out", str(out), "--no-bayes", "--quiet"]) == 0
+    assert (out / "report.html").read_text(encoding="utf-8").startswith("<!DOCTYPE html>")
+    assert (out / "report.pdf").read_bytes()[:5] == b"%PDF-"
+    assert capsys.readouterr().out == ""  # --quiet
+    # bad input: exit 2 with the file named
+    assert main(["report", str(tmp_path / "missing.toml"), "--out", str(out), "-q"]) == 2
+    assert "missing.toml" in capsys.readouterr().err
+    assert main(["report", str(DEMO), "--out", str(out), "--steps", "5", "-q"]) == 2
+    assert "--steps" in capsys.readouterr().err
+
+
+def test_every_command_has_help_with_an_example(capsys):
+    commands = [
+        ["fit"],
+        ["compensate"],
+        ["simulate"],
+        ["demo"],
+        ["report"],
+        ["decide"],
+        ["capability"],
+        ["gcode"],
+        ["gcode", "nose-comp"],
+        ["gcode", "check"],
+    ]
+    for cmd in commands:
+        with pytest.raises(SystemExit) as exc:
+            main([*cmd, "--help"])
+        assert exc.value.code == 0
+        text = capsys.readouterr().out
+        assert "example" in text, cmd
+        assert "piecs-bayes " + cmd[0] in text.split("example", 1)[1], cmd
+    for cmd in ("fit", "compensate", "demo", "report", "decide", "capability", "simulate"):
+        with pytest.raises(SystemExit):
+            main([cmd, "--help"])
+        text = capsys.readouterr().out
+        for opt in ("--out", "--seed", "--quiet"):
+            assert opt in text, (cmd, opt)
+
+
+def test_study_sets_the_sampler(tmp_path):
+    """`[fit] bayes_steps` and friends are read from the study file (the demo's run
+    length keeps it converged), and a bad value is refused with its key."""
+    import tomllib
+
+    from piecs_bayes.errors import InputError
+    from piecs_bayes.pipeline import load_study
+
+    raw = tomllib.loads(DEMO.read_text())["fit"]
+    fit = load_study(DEMO).fit
+    assert fit.bayes_steps == raw["bayes_steps"] != 6000  # not the default
+    text = DEMO.read_text().replace("[fit]\n", '[fit]\nlikelihood = "student_t"\nnu = 5\n')
+    text = text.replace('probe_files = ["probe_part01.csv"]', "probe_files = []")
+    text = text.replace('part_program = "finish.ngc"\n', "")
+    (tmp_path / "s.toml").write_text(text)
+    fit = load_study(tmp_path / "s.toml").fit
+    assert (fit.likelihood, fit.nu) == ("student_t", 5.0)
+    (tmp_path / "bad.toml").write_text(
+        text.replace(f"bayes_steps = {raw['bayes_steps']}", 'bayes_steps = "many"')
+    )
+    with pytest.raises(InputError, match="fit.bayes_steps"):
+        load_study(tmp_path / "bad.toml")
