@@ -4,7 +4,8 @@ and what is the process capable of.
 - ``decide STUDY --out DIR``: fit one part, decide per feature (compensate with a
   gain, do not compensate, measure more) and write ``decisions.json`` and
   ``decisions.csv``; the table is printed.
-- ``capability STUDY [--glob PATTERN] --out DIR``: fit every part of a run, write
+- ``capability STUDY [--glob PATTERN] [--scheduler ADDRESS] --out DIR``: fit every
+  part of a run (batched; on a Dask cluster with ``--scheduler``), write
   ``capability.json``, ``capability.csv`` (one row per feature and index),
   ``capability_summary.csv`` (one row per feature) and ``capability_parts.csv``
   (values and control-chart flags per part); the tables are printed.
@@ -67,6 +68,20 @@ def register(subparsers) -> None:
     p.add_argument(
         "--method", choices=("lsq", "robust"), default=None, help="default: the study's fit.method"
     )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="Dask scheduler (e.g. tcp://10.0.0.5:8786): send chunks of parts to that "
+        "cluster (its workers need piecs_bayes installed); default: fit in this process",
+    )
+    p.add_argument(
+        "--chunk-parts",
+        type=int,
+        default=None,
+        metavar="N",
+        help="parts per batch fit (per task with --scheduler; default 512)",
+    )
     _add_common(p)
     p.set_defaults(func=cmd_capability)
 
@@ -107,13 +122,20 @@ def cmd_capability(args, console) -> int:
     probe = load_probe_data(study, files)
     n = len(probe.parts)
     console.step(f"read {len(probe)} probe points of {n} parts")
-    every = max(1, n // 6)
+    where = f" on {args.scheduler}" if args.scheduler else ""
 
-    def progress(i, total, part):
-        if i % every == 0 or i == total:
-            console.step(f"fitted {i}/{total} parts ({part})")
+    def progress(i, total, part):  # called after each chunk of parts
+        console.step(f"fitted {i}/{total} parts ({part}){where}")
 
-    result = capability_study(study, probe, method=args.method, seed=args.seed, progress=progress)
+    result = capability_study(
+        study,
+        probe,
+        method=args.method,
+        seed=args.seed,
+        progress=progress,
+        scheduler=args.scheduler,
+        chunk_parts=args.chunk_parts,
+    )
     out = _out_dir(args, study)
     written: list[Path] = []
     _write(out, "capability.json", result.to_json(), study, console, written)

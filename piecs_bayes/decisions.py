@@ -994,6 +994,8 @@ def capability_study(
     method: str | None = None,
     seed: int = 0,
     progress: Callable[[int, int, str], None] | None = None,
+    scheduler=None,
+    chunk_parts: int | None = None,
     **overrides,
 ) -> CapabilityStudy:
     """Fit every part of a run and study each feature's capability.
@@ -1004,7 +1006,12 @@ def capability_study(
       `files` (paths) or `probe` (a `ProbeData`) give the parts in production order.
     - `method`: fit method (default the study's). A part whose fit fails is refitted
       with plain least squares and the note says so; a part that fails both is left out.
-    - `progress`: called as `progress(i, n, part)` after each part.
+    - `progress`: called as `progress(i, n, part)` after each part (after each chunk of
+      parts when the fits are batched).
+    - `scheduler`, `chunk_parts`: the parts are fitted in batches of `chunk_parts`
+      (one compiled call per feature kind; see `piecs_bayes._distributed`), in this
+      process or, with `scheduler` (a Dask scheduler address or `distributed.Client`),
+      on a Dask cluster. Joint fits (`fit.free_transform`) are fitted part by part.
     - `overrides`: any keyword of [`capability_from_values`][] (default: the study's
       `[capability]` table).
 
@@ -1031,6 +1038,23 @@ def capability_study(
     if used == "bayes":
         used = "robust"
         notes.append("per-part values from the robust fits (the study asks for bayes)")
+    if not study.fit.free_transform:
+        from ._distributed import CHUNK_PARTS, capability_values
+
+        values, us, pids, usys, more = capability_values(
+            study,
+            probe,
+            method=used,
+            at=at,
+            sources=sds,
+            progress=progress,
+            scheduler=scheduler,
+            chunk_parts=chunk_parts or CHUNK_PARTS,
+        )
+        notes += more
+        parts = ()  # fitted above; the loop below is for joint fits
+    elif scheduler is not None:
+        raise InputError("--scheduler: joint fits (fit.free_transform) run in-process only")
     for i, p in enumerate(parts):
         data = probe.for_part(p)
         try:

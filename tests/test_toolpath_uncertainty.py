@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from piecs_bayes.fit import fit_profile, fit_profile_bayes
+from piecs_bayes.fit import fit_profile, fit_profiles_bayes
 from piecs_bayes.fit._features import to_part_frame
 from piecs_bayes.geometry import MachineTransform, Profile
 from piecs_bayes.pipeline import bayes_study, fit_study, load_study, toolpath_uncertainty
@@ -124,8 +124,9 @@ def test_calibration_over_200_simulated_parts():
         np.asarray, path_function(profile, grid)(tuple(truth[f.id] for f in profile))
     )
     rng = np.random.default_rng(123)
-    hits = {"lin": ([], [], []), "mc": ([], [], [])}
-    for k in range(200):
+    n_parts = 200
+    sims, fits, lins = [], [], []
+    for _ in range(n_parts):
         d = {n: rng.normal(0.0, s) for n, s in src.items()}
         real = MachineTransform(
             x_centre=t0.x_centre + d["x_centre"], z_offset=t0.z_offset, scale_z=d["scale_z"]
@@ -153,26 +154,34 @@ def test_calibration_over_200_simulated_parts():
             source_sd=src,
             grid=grid,
         )
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # short chains on purpose: the coverage is the check
-            bayes = fit_profile_bayes(
-                profile,
-                sim["feature"],
-                sim["points"],
-                start=fit.deviations,
-                start_cov=fit.covariances,
-                sources=priors,
-                ball_radius=1.0,
-                transform=t0,
-                sigma=sigma,
-                nsteps=500,
-                n_ensembles=1,
-                nwalkers=32,
-                progress=False,
-                on_fail="ignore",
-                seed=k,
-            )
-        mc = monte_carlo_toolpath(profile, bayes.deviation_samples, grid=grid)
+        sims.append(sim)
+        fits.append(fit)
+        lins.append(lin)
+    # all parts sampled together: independent emcee ensembles stepped in lockstep
+    # (issue 8), so this also checks the batch sampler's calibration
+    parts = np.repeat([f"p{k:03d}" for k in range(n_parts)], [len(s["feature"]) for s in sims])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # short chains on purpose: the coverage is the check
+        bayes = fit_profiles_bayes(
+            profile,
+            parts,
+            np.concatenate([s["feature"] for s in sims]),
+            np.concatenate([s["points"] for s in sims]),
+            starts={f"p{k:03d}": fit.deviations for k, fit in enumerate(fits)},
+            sources=priors,
+            ball_radius=1.0,
+            transform=t0,
+            sigma=sigma,
+            nsteps=500,
+            n_ensembles=1,
+            nwalkers=32,
+            progress=False,
+            on_fail="ignore",
+            seed=7,
+        )
+    hits = {"lin": ([], [], []), "mc": ([], [], [])}
+    for lin, post in zip(lins, bayes.values(), strict=True):
+        mc = monte_carlo_toolpath(profile, post.deviation_samples, grid=grid)
         for key, u in (("lin", lin), ("mc", mc)):
             dev_z = np.concatenate(
                 [

@@ -1,5 +1,9 @@
 """Fitting: general (robust) least squares on optimistix, feature models, Bayesian fits."""
 
+from ._batch import BatchFit as BatchFit
+from ._batch import fit_profiles as fit_profiles
+from ._batch_bayes import fit_profiles_bayes as fit_profiles_bayes
+from ._batch_bayes import sample_posteriors as sample_posteriors
 from ._bayes import ConvergenceError as ConvergenceError
 from ._bayes import ConvergenceWarning as ConvergenceWarning
 from ._bayes import Posterior as Posterior

@@ -33,17 +33,16 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 import time
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-import emcee
 import jax
 import jax.numpy as jnp
 import jax.scipy.special as jsp
 import numpy as np
-from scipy import stats
 
 from ..errors import AnalysisError, InputError
 
@@ -116,6 +115,8 @@ def student_t_loglik(residuals, scale, nu):
 
 
 def _rank_normalise(x: np.ndarray) -> np.ndarray:
+    from scipy import stats  # lazily: scipy.stats costs ~0.5 s of import time
+
     r = stats.rankdata(x, axis=None).reshape(x.shape)
     return stats.norm.ppf((r - 0.375) / (x.size + 0.25))
 
@@ -149,6 +150,8 @@ def split_rhat(chains) -> float:
 def _diagnose(kept: np.ndarray, thin: int, tau_factor: float):
     """`kept`: (K, S, W, d) -> tau (orig. steps), reliable, ess, rhat per parameter."""
     k, s, w, d = kept.shape
+    import emcee  # lazily: emcee imports scipy.stats (~0.5 s)
+
     taus = np.stack(
         [emcee.autocorr.integrated_time(kept[i], c=5, tol=0, quiet=True) for i in range(k)]
     )  # (K, d), in kept (thinned) steps
@@ -301,7 +304,7 @@ class Posterior:
         post = {n: self.chains[:, :, j].T for j, n in enumerate(self.names)}
         idata = az.from_dict(posterior=post, sample_stats={"lp": self.log_prob.T})
         attrs = {
-            "sampler": f"emcee {emcee.__version__} EnsembleSampler (vectorized JAX log_prob)",
+            "sampler": f"emcee {_emcee().__version__} EnsembleSampler (vectorized JAX log_prob)",
             "n_ensembles": self.n_ensembles,
             "nwalkers_per_ensemble": self.nwalkers,
             "nsteps": self.nsteps,
@@ -322,6 +325,14 @@ class Posterior:
     def to_netcdf(self, path) -> str:
         """Write `to_arviz()` to a netCDF file (h5netcdf); `arviz.from_netcdf` reads it."""
         return self.to_arviz().to_netcdf(str(path))
+
+
+def _emcee():
+    """emcee, imported on first use: it imports scipy.stats (~0.5 s), which a CLI
+    run that does not sample should not pay for."""
+    import emcee
+
+    return emcee
 
 
 def _import_arviz():
@@ -374,6 +385,7 @@ def _moves(moves):
     if moves is None or moves == "stretch":
         return None
     if moves == "de":
+        emcee = _emcee()
         return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
     raise InputError(f"moves: got {moves!r}, expected None, 'stretch' or 'de'")
 
@@ -491,13 +503,18 @@ def sample_posterior(
     kept, lps, acc = [], [], []
     t0 = time.perf_counter()
     for k, (p0, lp0, rs) in enumerate(starts):
+        emcee = _emcee()
         sampler = emcee.EnsembleSampler(nwalkers, ndim, f, vectorize=True, moves=_moves(moves))
         state = emcee.State(p0, log_prob=lp0, random_state=np.random.RandomState(rs).get_state())
         sampler.run_mcmc(
             state,
             nsteps,
             progress=progress,
-            progress_kwargs={"desc": f"emcee ensemble {k + 1}/{n_ensembles}"},
+            progress_kwargs={
+                "desc": f"emcee ensemble {k + 1}/{n_ensembles}",
+                # a log file (CI, `make demo > log`) gets a line every 10 s, not 300
+                "mininterval": 0.1 if sys.stderr.isatty() else 10.0,
+            },
         )
         kept.append(sampler.get_chain(discard=burn, thin=thin))
         lps.append(sampler.get_log_prob(discard=burn, thin=thin))

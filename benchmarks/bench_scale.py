@@ -1,0 +1,688 @@
+"""Speed and scale, side by side with what a user would otherwise write (issue 8).
+
+    .venv/bin/python benchmarks/bench_scale.py                  # everything (~10 min)
+    .venv/bin/python benchmarks/bench_scale.py --only a,b --parts 2000
+    .venv/bin/python benchmarks/bench_scale.py --quick          # small sizes, a smoke run
+
+Sections (Markdown tables; every ratio is measured in this one run, so a loaded
+machine slows both sides alike):
+
+- (a) one robust part fit (the demo part, 7 features, a chip on dia_30) against a
+  `scipy.optimize.least_squares` loop over its features: same model (ball-centre
+  signed distances), same Huber loss and scale, same tolerances (1e-10);
+  results checked equal;
+- (b) a fleet of `--parts` parts (default 10,000): `fit_profiles` against the same
+  SciPy loop (timed on `--scipy-sample` parts and extrapolated, as it says), and
+  the whole capability computation; peak memory (RSS) of a process that does only
+  this;
+- (c) emcee with the JAX log posterior (jitted, vmapped, `vectorize=True`) against
+  emcee with a NumPy log posterior of the same posterior (checked equal), in
+  effective samples per second; the lockstep ensembles of `sample_posteriors` for
+  1 and 16 parts;
+- (d) NumPyro NUTS on the same posterior (skipped when numpyro is missing);
+- (e) `piecs-bayes fit data/demo/study.toml`: cold (empty cache), warm (persistent
+  compilation cache), without the cache; import times;
+- (f) cost against points per feature and against number of parts (a table and a
+  log-log plot written to `--plot`, default `reports/bench_scaling.png`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("JAX_PLATFORMS", "cpu")
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+from _common import load, machine_line, simulate_fleet, timeit  # noqa: E402
+
+import piecs_bayes  # noqa: E402,F401
+from piecs_bayes.fit import fit_profiles  # noqa: E402
+from piecs_bayes.fit._features import to_part_frame  # noqa: E402
+from piecs_bayes.pipeline import (  # noqa: E402
+    fit_study,
+    inliers,
+    load_probe_data,
+    load_study,
+    robust_scale,
+)
+from piecs_bayes.simulate import DEMO_TRANSFORM  # noqa: E402
+
+DEMO = ROOT / "data" / "demo" / "study.toml"
+TOL = 1e-10
+
+
+# --------------------------------------------------------------------------- SciPy peer
+
+
+def _scipy_feature(f, pts, rb, scale, *, jac=True):
+    """The feature fit a SciPy user writes: same residuals, Huber loss and scale."""
+    from scipy.optimize import least_squares
+
+    if f.kind == "line":
+        mid, nrm = np.asarray(f.midpoint), np.asarray(f.normal)
+
+        def res(y):
+            c, s = np.cos(y[1]), np.sin(y[1])
+            rn = np.array([c * nrm[0] + s * nrm[1], -s * nrm[0] + c * nrm[1]])
+            return (pts - mid - y[0] * nrm) @ rn - rb
+
+        def jacf(y):
+            c, s = np.cos(y[1]), np.sin(y[1])
+            rn = np.array([c * nrm[0] + s * nrm[1], -s * nrm[0] + c * nrm[1]])
+            drn = np.array([-s * nrm[0] + c * nrm[1], -c * nrm[0] - s * nrm[1]])
+            return np.column_stack([np.full(len(pts), -(nrm @ rn)), (pts - mid - y[0] * nrm) @ drn])
+
+        x0 = np.zeros(2)
+    else:
+        cen, rad, sense = np.asarray(f.center), float(f.radius), float(f.sense)
+
+        def res(y):
+            v = pts - cen - y[:2]
+            return sense * (np.sqrt(np.sum(v * v, axis=1)) - (rad + y[2])) - rb
+
+        def jacf(y):
+            v = pts - cen - y[:2]
+            r = np.sqrt(np.sum(v * v, axis=1))
+            return sense * np.column_stack([-v[:, 0] / r, -v[:, 1] / r, -np.ones(len(pts))])
+
+        x0 = np.zeros(3)
+    out = least_squares(
+        res,
+        x0,
+        jac=jacf if jac else "2-point",
+        loss="huber",
+        f_scale=scale,
+        ftol=TOL,
+        xtol=TOL,
+        gtol=TOL,
+    )
+    return out.x
+
+
+def scipy_part(profile, features, centres, rb, scale, *, jac=True):
+    return {
+        f.id: _scipy_feature(f, centres[features == f.id], rb, scale, jac=jac)
+        for f in profile.features
+        if np.any(features == f.id)
+    }
+
+
+def _table(rows, head):
+    widths = [max(len(str(r[i])) for r in [head, *rows]) for i in range(len(head))]
+    line = "| " + " | ".join(str(h).ljust(w) for h, w in zip(head, widths, strict=True)) + " |"
+    out = [line, "|" + "|".join("-" * (w + 2) for w in widths) + "|"]
+    for r in rows:
+        out.append(
+            "| " + " | ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)) + " |"
+        )
+    return "\n".join(out)
+
+
+def _ms(t):
+    return f"{t * 1e3:.2f} ms" if t < 1 else f"{t:.2f} s"
+
+
+# --------------------------------------------------------------------------- (a)
+
+
+def section_a(args):
+    print(f"\n## (a) One robust part fit vs scipy.optimize.least_squares\n\n{load()}\n")
+    study = load_study(DEMO)
+    probe = load_probe_data(study)
+    centres = to_part_frame(study.transform, probe.points)
+    rb, scale = study.probe.ball_radius, robust_scale(study)
+    kw = dict(ball_radius=rb, method="robust", loss="huber", scale=scale, lines=probe.lines)
+    parts = np.full(len(probe), "part01")
+
+    def ours_batch():
+        return fit_profiles(study.profile, parts, probe.feature, centres, batch_size=8, **kw)
+
+    t0 = time.perf_counter()
+    fit = fit_study(study, probe)
+    t_compile_loop = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    batch = ours_batch()
+    t_compile_batch = time.perf_counter() - t0
+    n = 5 if args.quick else 20
+    t_loop = timeit(lambda: fit_study(study, probe), repeat=n)
+    t_batch = timeit(ours_batch, repeat=n)
+    t_sp = timeit(lambda: scipy_part(study.profile, probe.feature, centres, rb, scale), repeat=n)
+    t_sp2 = timeit(
+        lambda: scipy_part(study.profile, probe.feature, centres, rb, scale, jac=False), repeat=n
+    )
+    ref = scipy_part(study.profile, probe.feature, centres, rb, scale)
+    d_abs = max(float(np.max(np.abs(fit[k].values - v))) for k, v in ref.items())
+    d_se = max(float(np.max(np.abs(fit[k].values - v) / fit[k].std_errors)) for k, v in ref.items())
+    d_b = max(float(np.max(np.abs(batch.values(k)[0] - fit[k].values))) for k in fit.fits)
+    rows = [
+        ["scipy least_squares loop, analytic Jacobian (trf, huber)", t_sp],
+        ["scipy least_squares loop, default 2-point Jacobian", t_sp2],
+        ["piecs_bayes fit_study / fit_profile (per-feature API)", t_loop],
+        ["piecs_bayes fit_profiles, one part (batch_size=8)", t_batch],
+    ]
+    rows = [[label, _ms(t), f"{t_sp / t:.2f}x"] for label, t in rows]
+    print(_table(rows, ["per part (7 features, 54 points)", "time", "speed vs scipy"]))
+    print(
+        f"\nFirst call (compilation, persistent cache as found): fit_study {t_compile_loop:.1f} s, "
+        f"fit_profiles {t_compile_batch:.1f} s. Results: |piecs_bayes - scipy| <= {d_abs:.1e} "
+        f"mm/rad = {d_se:.1e} standard errors; |batch - fit_study| <= {d_b:.1e}."
+    )
+    return {"t_scipy": t_sp, "t_loop": t_loop, "t_batch": t_batch}
+
+
+# --------------------------------------------------------------------------- (b)
+
+
+def _child_b(n_parts: int) -> dict:
+    """Runs in a fresh process: simulate, fit, characterise; reports times and peak RSS."""
+    from piecs_bayes._distributed import capability_job, characteristic_arrays  # noqa: F401
+
+    fleet = simulate_fleet(n_parts, seed=1)
+    centres = to_part_frame(DEMO_TRANSFORM, fleet["points"])
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
+    warm = np.isin(fleet["part"], np.unique(fleet["part"])[:256])
+    # first run: compiles everything it meets (the kernel, and the engine's LM for the
+    # retries of the problems the kernel did not solve); the second is timed
+    t0 = time.perf_counter()
+    fit_profiles(fleet["profile"], fleet["part"], fleet["feature"], centres, **kw)
+    t_compile = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    batch = fit_profiles(fleet["profile"], fleet["part"], fleet["feature"], centres, **kw)
+    t_fit = time.perf_counter() - t0
+    t_compile -= t_fit
+    t0 = time.perf_counter()
+    for fid in batch.feature_ids:
+        characteristic_arrays(batch, fid, at="mid")
+    t_char = time.perf_counter() - t0
+    lm_n = min(n_parts, 1000)
+    lm_sel = np.isin(fleet["part"], np.unique(fleet["part"])[:lm_n])
+    fit_profiles(fleet["profile"], fleet["part"][warm], fleet["feature"][warm], centres[warm],
+                 solver="lm", **kw)  # fmt: skip
+    t0 = time.perf_counter()
+    fit_profiles(fleet["profile"], fleet["part"][lm_sel], fleet["feature"][lm_sel],
+                 centres[lm_sel], solver="lm", **kw)  # fmt: skip
+    t_lm = (time.perf_counter() - t0) * n_parts / lm_n
+    lines = [f for f in batch.feature_ids if batch.profile[f].kind == "line"]
+    err = np.concatenate([np.abs(batch.values(f) - fleet["truth"][f])[:, 0] for f in lines])
+    truth_err = float(np.nanpercentile(err, 99))
+    return {
+        "n_parts": n_parts,
+        "t_compile": t_compile,
+        "t_fit": t_fit,
+        "t_char": t_char,
+        "t_lm": t_lm,
+        "lm_n": lm_n,
+        "failures": len(batch.failures),
+        "outliers": int(sum(batch.n_outliers(f).sum() for f in batch.feature_ids)),
+        "truth_err": truth_err,
+        "rss_fit_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "rss_before_fit_mb": rss0 / 1024,
+    }
+
+
+def section_b(args):
+    n = args.parts
+    print(f"\n## (b) {n} parts batched vs a scipy loop\n\n{load()} (start)\n")
+    out = subprocess.run(
+        [sys.executable, __file__, "--child-b", str(n)], capture_output=True, text=True
+    )
+    if out.returncode:
+        print(out.stderr[-3000:])
+        raise SystemExit("(b) child failed")
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    fleet = simulate_fleet(args.scipy_sample, seed=1)
+    centres = to_part_frame(DEMO_TRANSFORM, fleet["points"])
+    t0 = time.perf_counter()
+    ref = {}
+    for p in np.unique(fleet["part"]):
+        m = fleet["part"] == p
+        ref[p] = scipy_part(fleet["profile"], fleet["feature"][m], centres[m], 1.0, 1.345 * 0.0015)
+    t_sp = (time.perf_counter() - t0) / args.scipy_sample
+    kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
+    batch = fit_profiles(fleet["profile"], fleet["part"], fleet["feature"], centres, **kw)
+    diff = max(
+        float(np.max(np.abs(batch.values(f)[batch.parts.index(p)] - v)))
+        for p, r in ref.items()
+        for f, v in r.items()
+    )
+    sp_total = t_sp * n
+    rows = [
+        [f"scipy loop (timed on {args.scipy_sample} parts, x{n / args.scipy_sample:g})",
+         _ms(sp_total), _ms(t_sp), "1.0x"],
+        ["fit_profiles, solver='auto' (batch kernel, LM retries)", _ms(res["t_fit"]),
+         _ms(res["t_fit"] / n), f"{sp_total / res['t_fit']:.1f}x"],
+        [f"fit_profiles, solver='lm' (timed on {res['lm_n']} parts, scaled)", _ms(res["t_lm"]),
+         _ms(res["t_lm"] / n), f"{sp_total / res['t_lm']:.1f}x"],
+        ["+ characteristics of all features (capability values)", _ms(res["t_char"]),
+         _ms(res["t_char"] / n), ""],
+    ]  # fmt: skip
+    print(_table(rows, [f"{n} parts x 7 features, robust", "total", "per part", "speed"]))
+    print(
+        f"\nCompilation (first run minus second, cache as found): {res['t_compile']:.1f} s, "
+        f"not included. {res['failures']} fits failed (reported by status); "
+        f"{res['outliers']} outliers flagged (chips and 3-sigma noise); 99th percentile of "
+        f"|line offset - truth| {res['truth_err'] * 1e3:.2f} um (probe noise 1.5 um); "
+        f"batch vs scipy on the sample: <= {diff:.1e} "
+        f"mm/rad. Peak RSS of a process that simulates {n} parts and fits them: "
+        f"{res['rss_fit_mb']:.0f} MiB (of which {res['rss_before_fit_mb']:.0f} MiB before the "
+        f"fits: Python, JAX, the simulated data). {load()} (end)"
+    )
+    return res
+
+
+# --------------------------------------------------------------------------- (c), (d)
+
+
+def _posterior():
+    """The demo part's profile posterior (bayes_study's model), JAX and NumPy forms."""
+    from piecs_bayes.fit import profile_log_posterior
+
+    study = load_study(DEMO)
+    probe = load_probe_data(study)
+    fit = fit_study(study, probe)
+    use = inliers(fit, probe)
+    log_prob, lay, priors = profile_log_posterior(
+        study.profile, use.feature, sources=dict(study.sources),
+        ball_radius=study.probe.ball_radius, transform=study.transform,
+        sigma=study.probe.repeatability, with_approach=use.approach is not None,
+    )  # fmt: skip
+    args = (jnp.asarray(use.points), None if use.approach is None else jnp.asarray(use.approach))
+    x0 = np.zeros(len(lay.names))
+    for f, sl in lay.features:
+        x0[sl] = fit.deviations[f.id]
+    for name, k in lay.nuisance:
+        x0[k] = priors[name].mean
+    x0[lay.sigma_index] = study.probe.repeatability
+
+    # nominal geometry as plain NumPy, computed once (Feature properties are JAX)
+    feats = []
+    for f, sl in lay.features:
+        idx = np.flatnonzero(use.feature == f.id)
+        if f.kind == "line":
+            geo = (np.asarray(f.normal, dtype=float), np.asarray(f.midpoint, dtype=float))
+        else:
+            geo = (np.asarray(f.center, dtype=float), float(f.radius), float(f.sense))
+        feats.append((f.kind, sl, idx, geo))
+    base = np.asarray(study.transform.as_array())
+    pts = np.asarray(use.points)
+    tindex = {"x_centre": 0, "z_offset": 1, "scale_x": 2, "scale_z": 3, "rotation": 4}
+    npri = []
+    for name, k in lay.nuisance:
+        p = priors[name]
+        if type(p).__name__ != "Normal":
+            raise SystemExit(f"the NumPy posterior handles normal priors only, not {p!r}")
+        npri.append((name, k, float(p.mu), float(p.sigma)))
+    sig_sd = float(priors["repeatability"].sigma)
+    log2pi = math.log(2 * math.pi)
+
+    def np_log_prob(th):
+        """The same posterior in NumPy (per walker, as a user writes it for emcee)."""
+        t = base.copy()
+        rb = study.probe.ball_radius
+        lp = 0.0
+        for name, k, mu, sd in npri:
+            v = th[k]
+            lp += -0.5 * ((v - mu) / sd) ** 2 - math.log(sd) - 0.5 * log2pi
+            if name in tindex:
+                t[tindex[name]] += v
+            elif name == "ball_radius":
+                rb = rb + v
+        s = th[lay.sigma_index]
+        if s < 0:
+            return -np.inf
+        lp += -0.5 * (s / sig_sd) ** 2 - math.log(sig_sd) + math.log(2.0) - 0.5 * log2pi
+        u = (pts - t[:2]) * (1.0 + t[2:4])
+        c, sn = math.cos(t[4]), math.sin(t[4])
+        part = np.column_stack([c * u[:, 0] + sn * u[:, 1], -sn * u[:, 0] + c * u[:, 1]])
+        ss, n = 0.0, 0
+        for kind, sl, idx, geo in feats:
+            p, d = part[idx], th[sl]
+            if kind == "line":
+                nrm, mid = geo
+                cc, s2 = math.cos(d[1]), math.sin(d[1])
+                rn = np.array([cc * nrm[0] + s2 * nrm[1], -s2 * nrm[0] + cc * nrm[1]])
+                r = (p - mid - d[0] * nrm) @ rn - rb
+            else:
+                cen, rad, sense = geo
+                v = p - cen - d[:2]
+                r = sense * (np.sqrt(np.sum(v * v, axis=1)) - (rad + d[2])) - rb
+            ss += float(r @ r)
+            n += len(r)
+        return lp - 0.5 * ss / s**2 - n * math.log(s) - 0.5 * n * log2pi
+
+    return log_prob, args, x0, lay.names, np_log_prob
+
+
+def _emcee_ess(sampler, burn):
+    import emcee
+
+    chain = sampler.get_chain(discard=burn)
+    tau = emcee.autocorr.integrated_time(chain, c=5, tol=0, quiet=True)
+    s, w, _ = chain.shape
+    return float(np.min(s * w / tau)), float(np.max(tau)), s
+
+
+def section_cd(args):
+    import emcee
+
+    print(f"\n## (c) emcee: JAX vs NumPy log posterior; lockstep ensembles\n\n{load()}\n")
+    log_prob, pargs, x0, names, np_lp = _posterior()
+    d = len(x0)
+    from piecs_bayes.fit._bayes import _neg_hessian, _sqrt_psd, _vectorised
+
+    h = np.asarray(_neg_hessian(log_prob)(jnp.asarray(x0), pargs))
+    w_, v_ = np.linalg.eigh(0.5 * (h + h.T))
+    cov = (v_ / w_) @ v_.T
+    root = _sqrt_psd(cov)
+    rng = np.random.default_rng(0)
+    probe_pts = x0 + rng.standard_normal((50, d)) @ root.T
+    vec = _vectorised(log_prob)
+    lj = np.asarray(vec(jnp.asarray(probe_pts), pargs))
+    ln = np.array([np_lp(p) for p in probe_pts])
+    same = float(np.max(np.abs(lj - ln)))
+    nw = max(64, 4 * d)
+    nsteps = 600 if args.quick else 4000
+    burn = nsteps // 4
+    p0 = x0 + rng.standard_normal((nw, d)) @ root.T
+    moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+
+    def f_jax(p):
+        out = np.asarray(vec(jnp.asarray(p), pargs), dtype=float)
+        return np.where(np.isnan(out), -np.inf, out)
+
+    f_jax(p0)  # compile
+    results = {}
+    for label, fn, vecz in (("JAX (jit+vmap, vectorize=True)", f_jax, True),
+                            ("NumPy (per walker)", np_lp, False)):  # fmt: skip
+        sampler = emcee.EnsembleSampler(nw, d, fn, vectorize=vecz, moves=moves)
+        t0 = time.perf_counter()
+        sampler.run_mcmc(p0, nsteps, progress=False)
+        wall = time.perf_counter() - t0
+        ess, tau, s = _emcee_ess(sampler, burn)
+        results[label] = (wall, ess, tau, s)
+    from piecs_bayes.fit import sample_posteriors
+    from piecs_bayes.fit._batch_bayes import _parts_walkers
+
+    lock = {}
+    for backend, n_parts in (("numpy", 1), ("jax", 1), ("jax", 16)):
+        xs = np.repeat(x0[None], n_parts, axis=0)
+        a = jax.tree_util.tree_map(lambda z, n=n_parts: jnp.repeat(z[None], n, axis=0), pargs)
+        cov0 = np.repeat(cov[None], n_parts, 0)
+        kw = dict(names=names, args=a, nwalkers=nw, nsteps=nsteps, n_ensembles=1, cov0=cov0,
+                  progress=False, on_fail="ignore", moves="de", backend=backend)  # fmt: skip
+        _parts_walkers(log_prob)(jnp.asarray(np.repeat(xs[:, None], nw // 2, 1)), a)  # compile
+        if backend == "jax":  # compile the chain (the same shapes as the timed run)
+            sample_posteriors(log_prob, xs, **kw)
+        t0 = time.perf_counter()
+        posts = sample_posteriors(log_prob, xs, **kw)
+        wall = time.perf_counter() - t0
+        lock[backend, n_parts] = (wall, float(np.mean([np.min(p.ess) for p in posts])), posts)
+    base_wall, base_ess, _, _ = results["NumPy (per walker)"]
+    base = base_ess / base_wall
+    rows = []
+    for label, (wall, ess, tau, _) in results.items():
+        rows.append([f"emcee + {label}", f"{wall:.1f} s", f"{tau:.0f}", f"{ess:.0f}",
+                     f"{ess / wall:.0f}", f"{ess / wall / base:.1f}x"])  # fmt: skip
+    for (backend, n_parts), (wall, ess, posts) in lock.items():
+        tau = float(np.max(posts[0].tau))
+        rate = ess * n_parts / wall
+        rows.append([f"sample_posteriors, backend={backend!r}, {n_parts} part(s) in lockstep",
+                     f"{wall:.1f} s", f"{tau:.0f}", f"{ess:.0f}", f"{rate:.0f}",
+                     f"{rate / base:.1f}x"])  # fmt: skip
+    print(
+        _table(
+            rows,
+            [
+                f"sampler (d={d}, {nw} walkers, {nsteps} steps, DE moves)",
+                "wall",
+                "tau (steps)",
+                "min ESS",
+                "ESS/s",
+                "vs NumPy",
+            ],
+        )  # fmt: skip
+    )
+    print(
+        f"\nSame posterior: |log p JAX - log p NumPy| <= {same:.1e} at 50 points of the start "
+        "ball. ESS = kept steps x walkers / tau (emcee's estimator, c=5), smallest over "
+        "parameters; lockstep rows: ESS/s counts the samples of all parts (compilation "
+        "excluded: a first run of the same shapes). tau from chains "
+        f"shorter than 50 tau is rough (here {nsteps - burn} kept steps)."
+    )
+    return section_d(args, log_prob, pargs, x0, cov, base)
+
+
+def section_d(args, log_prob, pargs, x0, cov, base):
+    print(f"\n## (d) NumPyro NUTS on the same posterior\n\n{load()}\n")
+    try:
+        import numpyro
+        from numpyro.diagnostics import effective_sample_size
+        from numpyro.infer import MCMC, NUTS
+    except ImportError:
+        print("numpyro is not installed: skipped (pip install 'piecs_bayes[bench]').")
+        return None
+    # NUTS is not affine invariant: sample standardised z, theta = x0 + L z (L from the
+    # Hessian at the optimum), as a NUTS user would, with an adapted diagonal mass
+    chol = np.linalg.cholesky(cov)
+    lj, x0j = jnp.asarray(chol), jnp.asarray(x0)
+
+    def potential(z):
+        v = -log_prob(x0j + lj @ z, pargs)
+        return jnp.where(jnp.isfinite(v), v, jnp.inf)
+
+    n_warm, n_samp = (300, 500) if args.quick else (1000, 2000)
+    mcmc = MCMC(NUTS(potential_fn=potential), num_warmup=n_warm, num_samples=n_samp,
+                progress_bar=False)  # fmt: skip
+    t0 = time.perf_counter()
+    mcmc.run(jax.random.PRNGKey(0), init_params=jnp.zeros(len(x0)), extra_fields=("num_steps",))
+    t_first = time.perf_counter() - t0
+    z = np.asarray(mcmc.get_samples())
+    ess1 = float(np.min(effective_sample_size(z[None])))
+    mcmc.post_warmup_state = mcmc.last_state
+    t0 = time.perf_counter()
+    mcmc.run(mcmc.post_warmup_state.rng_key, extra_fields=("num_steps",))
+    t_second = time.perf_counter() - t0
+    z = np.asarray(mcmc.get_samples())
+    ess = float(np.min(effective_sample_size(z[None])))
+    steps = float(np.mean(np.asarray(mcmc.get_extra_fields()["num_steps"])))
+    rows = [
+        [f"NUTS warmup {n_warm} + {n_samp} draws (compile included)", f"{t_first:.1f} s",
+         f"{ess1:.0f}", f"{ess1 / t_first:.0f}", f"{ess1 / t_first / base:.1f}x"],
+        [f"NUTS {n_samp} more draws (adapted, recompiled)", f"{t_second:.1f} s", f"{ess:.0f}",
+         f"{ess / t_second:.0f}", f"{ess / t_second / base:.1f}x"],
+    ]  # fmt: skip
+    print(
+        _table(
+            rows, [f"numpyro {numpyro.__version__}", "wall", "min ESS", "ESS/s", "vs emcee+NumPy"]
+        )
+    )
+    print(f"\nMean leapfrog steps per draw: {steps:.1f}. ESS: numpyro's estimator, one chain.")
+    return ess / t_second
+
+
+# --------------------------------------------------------------------------- (e)
+
+
+def _cli(cache: str | None, out: str) -> float:
+    env = dict(os.environ)
+    env.pop("PIECS_BAYES_NO_CACHE", None)
+    if cache is None:
+        env["PIECS_BAYES_NO_CACHE"] = "1"
+    else:
+        env["XDG_CACHE_HOME"] = cache
+    exe = str(Path(sys.executable).with_name("piecs-bayes"))
+    t0 = time.perf_counter()
+    subprocess.run([exe, "fit", str(DEMO), "--out", out, "-q"], check=True, env=env)
+    return time.perf_counter() - t0
+
+
+def _import_time(module: str) -> float:
+    out = subprocess.run(
+        [sys.executable, "-X", "importtime", "-c", f"import {module}"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    last = [ln for ln in out.stderr.splitlines() if ln.rstrip().endswith(f"| {module}")]
+    return int(last[-1].split("|")[1]) / 1e6 if last else float("nan")
+
+
+def section_e(args):
+    print(f"\n## (e) `piecs-bayes fit data/demo/study.toml`: cold and warm\n\n{load()}\n")
+    with tempfile.TemporaryDirectory() as tmp:
+        cache = str(Path(tmp) / "cache")
+        out = str(Path(tmp) / "out")
+        jax_dir = Path(cache) / "piecs_bayes" / "jax"
+        cold = _cli(cache, out)
+        after_cold = sorted(p.name for p in jax_dir.iterdir())
+        warm = [_cli(cache, out) for _ in range(3)]
+        after_warm = sorted(p.name for p in jax_dir.iterdir())
+        none = _cli(None, out)
+        n_files = len(after_warm)
+        size = sum(p.stat().st_size for p in jax_dir.iterdir())
+        stable = (
+            "no new entry"
+            if after_warm == after_cold
+            else (f"{len(set(after_warm) - set(after_cold))} NEW entries (unstable cache keys)")
+        )
+    rows = [
+        ["cold (empty cache directory)", f"{cold:.2f} s", "1.0x"],
+        ["warm (median of 3)", f"{sorted(warm)[1]:.2f} s", f"{cold / sorted(warm)[1]:.1f}x"],
+        ["no persistent cache (PIECS_BAYES_NO_CACHE=1)", f"{none:.2f} s", f"{cold / none:.1f}x"],
+    ]
+    print(_table(rows, ["wall time, whole process", "time", "vs cold"]))
+    imp = {m: _import_time(m) for m in ("piecs_bayes.cli", "piecs_bayes.pipeline", "jax")}
+    print(
+        f"\nCache: {n_files} entries, {size / 1e6:.1f} MB; the warm runs wrote {stable}. "
+        "Import (python -X importtime, cumulative): "
+        + ", ".join(f"{m} {t:.2f} s" for m, t in imp.items())
+        + "."
+    )
+    return {"cold": cold, "warm": sorted(warm)[1], "none": none}
+
+
+# --------------------------------------------------------------------------- (f)
+
+
+def section_f(args):
+    print(f"\n## (f) How the batch fit's cost grows\n\n{load()}\n")
+    kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
+    n_ref = 256 if args.quick else 1024
+    by_points = []
+    for k in (4, 8, 16, 32, 64, 128):
+        fleet = simulate_fleet(n_ref, seed=2, points=k)
+        c = to_part_frame(DEMO_TRANSFORM, fleet["points"])
+        t0 = time.perf_counter()
+        fit_profiles(fleet["profile"], fleet["part"], fleet["feature"], c, **kw)
+        first = time.perf_counter() - t0
+        t = timeit(
+            lambda f=fleet, c=c: fit_profiles(f["profile"], f["part"], f["feature"], c, **kw),
+            repeat=2,
+        )
+        by_points.append((k, t, first - t))
+    sizes = (10, 100, 1000) if args.quick else (10, 100, 1000, 10000)
+    fleet = simulate_fleet(max(sizes), seed=3)
+    c = to_part_frame(DEMO_TRANSFORM, fleet["points"])
+    names = np.unique(fleet["part"])
+    by_parts = []
+    for n in sizes:
+        sel = np.isin(fleet["part"], names[:n])
+        args_n = (fleet["profile"], fleet["part"][sel], fleet["feature"][sel], c[sel])
+        fit_profiles(*args_n, **kw)
+        t = timeit(lambda a=args_n: fit_profiles(*a, **kw), repeat=2 if n < 10000 else 1)
+        sample = names[: min(n, 20)]
+
+        def scipy_loop(sample=sample):
+            for p in sample:
+                m = fleet["part"] == p
+                scipy_part(fleet["profile"], fleet["feature"][m], c[m], 1.0, 1.345 * 0.0015)
+
+        t_sp = timeit(scipy_loop, repeat=1) * n / len(sample)
+        by_parts.append((n, t, t_sp))
+    rows = [[k, _ms(t), _ms(t / (n_ref * 7)), f"{comp:.1f} s"] for k, t, comp in by_points]
+    print(_table(rows, [f"points per feature ({n_ref} parts x 7 features)", "time",
+                        "per fit", "compile (bucket)"]))  # fmt: skip
+    print()
+    rows = [[n, _ms(t), _ms(t / n), _ms(ts), f"{ts / t:.1f}x"] for n, t, ts in by_parts]
+    print(_table(rows, ["parts (demo points)", "fit_profiles", "per part", "scipy loop", "speed"]))
+    slope_p = np.polyfit(np.log([r[0] for r in by_points]), np.log([r[1] for r in by_points]), 1)[0]
+    slope_n = np.polyfit(np.log([r[0] for r in by_parts]), np.log([r[1] for r in by_parts]), 1)[0]
+    print(
+        f"\nLog-log slopes: time ~ points^{slope_p:.2f}, time ~ parts^{slope_n:.2f} (batches of "
+        "256 problems: below ~40 parts one padded batch per group costs the same)."
+    )
+    _plot(args.plot, by_points, by_parts, n_ref)
+
+
+def _plot(path, by_points, by_parts, n_ref):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
+    k, t, _ = zip(*by_points, strict=True)
+    a1.loglog(k, t, "o-", label=f"fit_profiles, {n_ref} parts")
+    a1.set_xlabel("points per feature")
+    a1.set_ylabel("wall time (s)")
+    a1.legend()
+    n, t, ts = zip(*by_parts, strict=True)
+    a2.loglog(n, t, "o-", label="fit_profiles (batched)")
+    a2.loglog(n, ts, "s--", label="scipy loop (extrapolated from 20 parts)")
+    a2.set_xlabel("parts (7 features, 54 points each)")
+    a2.set_ylabel("wall time (s)")
+    a2.legend()
+    for a in (a1, a2):
+        a.grid(True, which="both", alpha=0.3)
+    fig.suptitle(f"piecs_bayes batch fits, robust (Huber); {load()}", fontsize=9)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    print(f"\nPlot: {path}")
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--only", default="a,b,c,e,f", help="sections, e.g. a,b (c includes d)")
+    p.add_argument("--parts", type=int, default=10_000, help="(b) fleet size")
+    p.add_argument("--scipy-sample", type=int, default=200, help="(b) parts timed with scipy")
+    p.add_argument("--plot", default=str(ROOT / "reports" / "bench_scaling.png"))
+    p.add_argument("--quick", action="store_true", help="small sizes: a smoke run")
+    p.add_argument("--child-b", type=int, default=None, help=argparse.SUPPRESS)
+    args = p.parse_args(argv)
+    if args.child_b is not None:
+        print(json.dumps(_child_b(args.child_b)))
+        return
+    if args.quick:
+        args.parts = min(args.parts, 1000)
+        args.scipy_sample = min(args.scipy_sample, 50)
+    print(f"# piecs_bayes speed and scale\n\n{machine_line()}")
+    only = set(args.only.split(","))
+    if "a" in only:
+        section_a(args)
+    if "b" in only:
+        section_b(args)
+    if "c" in only or "d" in only:
+        section_cd(args)
+    if "e" in only:
+        section_e(args)
+    if "f" in only:
+        section_f(args)
+    print(f"\nDone; {load()}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,481 @@
+r"""Bayesian fits of many parts: independent ensembles stepped in lockstep.
+
+emcee's affine-invariant moves couple the walkers of one ensemble (a walker's
+proposal is built from the other walkers), so two parts must never share an
+ensemble: their posteriors differ, and a move across them would not leave
+either invariant. What *can* be shared is the work per step. Here every part
+gets `n_ensembles` ensembles of its own (as [`sample_posterior`][] does), and
+all `parts x ensembles` ensembles advance together: each half-step of the
+red-blue scheme (Foreman-Mackey et al. 2013) proposes a move for half of the
+walkers of **every** ensemble from the other half of **the same** ensemble,
+and one jitted call of the log posterior, `vmap`-ed over parts and walkers,
+evaluates all the proposals. Each ensemble is therefore exactly an emcee
+ensemble (same moves, same acceptance rule; only the random numbers differ),
+and the parts are independent Markov chains.
+
+Moves: `"stretch"` (Goodman & Weare, `a = 2`, emcee's `StretchMove`) or
+`"de"`: 80 % differential evolution (emcee's `DEMove`, $\gamma_0 = 2.38/\sqrt{2d}$,
+$\sigma_\gamma = 10^{-5}$) and 20 % stretch (emcee's default `"de"` mixture in
+[`fit_profile_bayes`][] uses a snooker move for the 20 %; both mixtures are valid,
+the snooker is not implemented here). The move is drawn per ensemble and step.
+Validated against emcee on the same posteriors (`tests/test_batch.py`,
+`benchmarks/bench_scale.py`).
+
+Diagnostics per part are [`sample_posterior`][]'s: split $\hat R$ across the
+part's ensembles, $\tau$, ESS and the same convergence verdict.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+import warnings
+from collections.abc import Callable
+from typing import Any, Literal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import AnalysisError, InputError
+from ._bayes import (
+    ConvergenceError,
+    ConvergenceWarning,
+    Posterior,
+    _diagnose,
+    _frozen,
+    _problems,
+    _sqrt_psd,
+    _start_cov,
+)
+
+__all__ = ["fit_profiles_bayes", "sample_posteriors"]
+
+_DE_FRACTION = 0.8
+
+
+@functools.lru_cache(maxsize=64)
+def _parts_walkers(log_prob):
+    """`log_prob(theta, args)` jitted and vmapped over parts (theta and args) and
+    walkers (theta only), cached per function."""
+    over_walkers = jax.vmap(log_prob, in_axes=(0, None))
+    return jax.jit(jax.vmap(over_walkers, in_axes=(0, 0)))
+
+
+def _evaluate(vec, q, args, n_parts, n_ens):
+    """Log posterior of proposals `q` `(P*K, m, d)` -> `(P*K, m)`, NaN -> -inf."""
+    e, m, d = q.shape
+    flat = q.reshape(n_parts, n_ens * m, d)
+    lp = np.asarray(vec(jnp.asarray(flat), args), dtype=float).reshape(e, m)
+    return np.where(np.isnan(lp), -np.inf, lp)
+
+
+def _half_step(rng, coords, lp, s_idx, c_idx, moves, ndim, lp_fn):
+    """One red-blue half-step for all ensembles at once: walkers `s_idx` `(E, h)`
+    move using their ensemble's walkers `c_idx` `(E, h)`. Updates in place;
+    returns the accepted mask `(E, h)`."""
+    e, h = s_idx.shape
+    rows = np.arange(e)[:, None]
+    s = coords[rows, s_idx]  # (E, h, d)
+    c = coords[rows, c_idx]
+    # stretch: q = c_j + z (s - c_j), log factor (d - 1) log z
+    a = 2.0
+    z = ((a - 1.0) * rng.random((e, h)) + 1.0) ** 2 / a
+    j = rng.integers(0, h, size=(e, h))
+    cj = c[rows, j]
+    q_st = cj - (cj - s) * z[..., None]
+    f_st = (ndim - 1.0) * np.log(z)
+    if moves == "de":
+        # differential evolution: q = s + gamma (c_k - c_l), k != l, factor 0
+        k = rng.integers(0, h, size=(e, h))
+        l_ = rng.integers(0, h - 1, size=(e, h))
+        l_ = l_ + (l_ >= k)
+        gamma = (2.38 / math.sqrt(2.0 * ndim)) * (1.0 + 1e-5 * rng.standard_normal((e, h, 1)))
+        q_de = s + gamma * (c[rows, l_] - c[rows, k])
+        use_de = rng.random(e) < _DE_FRACTION  # one move per ensemble and step
+        q = np.where(use_de[:, None, None], q_de, q_st)
+        f = np.where(use_de[:, None], 0.0, f_st)
+    else:
+        q, f = q_st, f_st
+    lp_new = lp_fn(q)
+    lp_old = lp[rows, s_idx]
+    accept = (f + lp_new - lp_old) > np.log(rng.random((e, h)))
+    coords[rows, s_idx] = np.where(accept[..., None], q, s)
+    lp[rows, s_idx] = np.where(accept, lp_new, lp_old)
+    return accept
+
+
+#: kept steps per jitted block of the JAX backend (the progress bar moves per block)
+_BLOCK = 250
+
+
+@functools.lru_cache(maxsize=32)
+def _jax_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: str, thin: int):
+    """Jitted `(burn, block)` runners of the lockstep ensembles, cached per model."""
+    vec = jax.vmap(jax.vmap(log_prob, in_axes=(0, None)), in_axes=(0, 0))
+    n_e, h = n_parts * k_ens, w // 2
+    rows = jnp.arange(n_e)[:, None]
+
+    def lp_fn(q, args):
+        out = vec(q.reshape(n_parts, k_ens * h, ndim), args).reshape(n_e, h)
+        return jnp.where(jnp.isnan(out), -jnp.inf, out)
+
+    def half(key, coords, lp, s_idx, c_idx, args):
+        ks = jax.random.split(key, 7)
+        s, c = coords[rows, s_idx], coords[rows, c_idx]
+        z = ((2.0 - 1.0) * jax.random.uniform(ks[0], (n_e, h)) + 1.0) ** 2 / 2.0
+        j = jax.random.randint(ks[1], (n_e, h), 0, h)
+        cj = c[rows, j]
+        q = cj - (cj - s) * z[..., None]
+        f = (ndim - 1.0) * jnp.log(z)
+        if moves == "de":
+            k = jax.random.randint(ks[2], (n_e, h), 0, h)
+            l_ = jax.random.randint(ks[3], (n_e, h), 0, h - 1)
+            l_ = l_ + (l_ >= k)
+            g0 = 2.38 / math.sqrt(2.0 * ndim)
+            gamma = g0 * (1.0 + 1e-5 * jax.random.normal(ks[4], (n_e, h, 1)))
+            q_de = s + gamma * (c[rows, l_] - c[rows, k])
+            use_de = jax.random.uniform(ks[5], (n_e,)) < _DE_FRACTION
+            q = jnp.where(use_de[:, None, None], q_de, q)
+            f = jnp.where(use_de[:, None], 0.0, f)
+        lp_new = lp_fn(q, args)
+        lp_old = lp[rows, s_idx]
+        acc = (f + lp_new - lp_old) > jnp.log(jax.random.uniform(ks[6], (n_e, h)))
+        coords = coords.at[rows, s_idx].set(jnp.where(acc[..., None], q, s))
+        lp = lp.at[rows, s_idx].set(jnp.where(acc, lp_new, lp_old))
+        return coords, lp, acc
+
+    def step(carry, args):
+        key, coords, lp, n_acc = carry
+        key, k0, k1, k2 = jax.random.split(key, 4)
+        perm = jnp.argsort(jax.random.uniform(k0, (n_e, w)), axis=1)  # emcee's split
+        first, second = perm[:, :h], perm[:, h:]
+        coords, lp, a1 = half(k1, coords, lp, first, second, args)
+        coords, lp, a2 = half(k2, coords, lp, second, first, args)
+        n_acc = n_acc.at[rows, first].add(a1).at[rows, second].add(a2)
+        return key, coords, lp, n_acc
+
+    @jax.jit
+    def burn_in(carry, n, args):
+        return jax.lax.fori_loop(0, n, lambda i, c: step(c, args), carry)
+
+    @jax.jit
+    def block(carry, args):
+        def keep(c, _):
+            c = jax.lax.fori_loop(0, thin, lambda i, cc: step(cc, args), c)
+            return c, (c[1], c[2])
+
+        return jax.lax.scan(keep, carry, None, length=_BLOCK)
+
+    return burn_in, block
+
+
+def _run_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep, seed, bar):
+    n_e, w, ndim = coords.shape
+    burn_in, block = _jax_chain(log_prob, n_parts, k_ens, w, ndim, moves, thin)
+    carry = (
+        jax.random.PRNGKey(seed),
+        jnp.asarray(coords),
+        jnp.asarray(lp),
+        jnp.zeros((n_e, w)),
+    )
+    done = 0
+    while done < burn:  # in blocks, for the progress bar
+        n = min(burn - done, _BLOCK * thin)
+        carry = burn_in(carry, n, args)
+        done += n
+        if bar is not None:
+            jax.block_until_ready(carry)
+            bar.update(done - bar.n)
+    chains, lps = [], []
+    for _ in range(-(-n_keep // _BLOCK)):
+        carry, (c, lp_b) = block(carry, args)
+        chains.append(c)
+        lps.append(lp_b)
+        if bar is not None:
+            jax.block_until_ready(carry)
+            bar.update(min(bar.total, burn + sum(len(x) for x in chains) * thin) - bar.n)
+    kept = np.concatenate([np.asarray(c) for c in chains])[:n_keep]
+    kept_lp = np.concatenate([np.asarray(x) for x in lps])[:n_keep]
+    kept_lp = np.where(np.isnan(kept_lp), -np.inf, kept_lp)
+    steps = burn + -(-n_keep // _BLOCK) * _BLOCK * thin  # the last block's padding too
+    return kept, kept_lp, np.asarray(carry[3]), steps
+
+
+def sample_posteriors(
+    log_prob: Callable,
+    x0,
+    *,
+    names,
+    args: Any,
+    cov0=None,
+    nwalkers: int | None = None,
+    nsteps: int = 2000,
+    burn: int | None = None,
+    thin: int = 1,
+    seed: int = 0,
+    progress: bool = True,
+    n_ensembles: int = 4,
+    init_scale: float = 1.0,
+    on_fail: Literal["warn", "raise", "ignore"] = "warn",
+    rhat_max: float = 1.01,
+    min_ess: float = 400.0,
+    tau_factor: float = 50.0,
+    moves: str | None = None,
+    backend: Literal["jax", "numpy"] = "jax",
+) -> list[Posterior]:
+    """Sample the posteriors of many parts of one model together (see module doc).
+
+    **Arguments:**
+
+    - `log_prob`: `log_prob(theta, args) -> scalar`, JAX-traceable, as for
+      [`sample_posterior`][]; the same function (one compilation) for every part.
+    - `x0`: `(P, dim)` start (the least-squares optimum) of each part.
+    - `args`: pytree whose every leaf has a leading axis of length `P`: part
+      `p`'s data is `tree_map(lambda a: a[p], args)`.
+    - `cov0`: start-ball covariance per part, `(P, dim, dim)` or `(P, dim)`
+      variances; `None`: the inverse Hessian of `-log_prob` at each `x0`.
+    - the rest: as [`sample_posterior`][] (`moves`: `None`/`"stretch"` or `"de"`);
+      `on_fail` applies per part (one warning lists every failing part).
+    - `backend`: `"jax"` (default): the whole chain is one jitted `lax.scan`
+      (moves, acceptance and the log posterior; run in blocks for the progress
+      bar), no Python per step; `"numpy"`: the moves in NumPy around one jitted
+      log-posterior call per half-step (emcee's structure). Same algorithm, other
+      random numbers. With `thin > 1` the JAX backend keeps every `thin`-th state
+      after `burn` (and may run up to `thin - 1` steps more).
+
+    `Posterior.wall_time` is the run's wall time divided by the number of parts.
+
+    **Returns:** one [`Posterior`][piecs_bayes.fit.Posterior] per part, in order.
+    """
+    x0 = np.asarray(x0, dtype=float)
+    if x0.ndim != 2 or not np.all(np.isfinite(x0)):
+        raise InputError(f"x0: expected a finite (parts, dim) array, got shape {x0.shape}")
+    n_parts, ndim = x0.shape
+    names = tuple(str(n) for n in names)
+    if len(names) != ndim:
+        raise InputError(f"names: got {len(names)} names for {ndim} parameters", value=names)
+    for leaf in jax.tree_util.tree_leaves(args):
+        if np.shape(leaf)[:1] != (n_parts,):
+            raise InputError(
+                f"args: every leaf needs a leading axis of {n_parts} parts, got shape "
+                f"{np.shape(leaf)}"
+            )
+    if on_fail not in ("warn", "raise", "ignore"):
+        raise InputError(f"on_fail: got {on_fail!r}, expected 'warn', 'raise' or 'ignore'")
+    moves = "stretch" if moves is None else moves
+    if moves not in ("stretch", "de"):
+        raise InputError(f"moves: got {moves!r}, expected None, 'stretch' or 'de'")
+    if nwalkers is None:
+        nwalkers = max(64, 4 * ndim)
+        nwalkers += nwalkers % 2
+    if nwalkers < 2 * ndim or nwalkers % 2:
+        raise InputError(f"nwalkers: got {nwalkers}, expected an even number >= 2 * dim")
+    burn = nsteps // 4 if burn is None else int(burn)
+    if not (0 <= burn < nsteps) or thin < 1 or (nsteps - burn) // thin < 8:
+        raise InputError(
+            f"nsteps={nsteps}, burn={burn}, thin={thin}: expected 0 <= burn < nsteps, thin >= 1 "
+            "and at least 8 kept steps"
+        )
+    if n_ensembles < 1:
+        raise InputError(f"n_ensembles: got {n_ensembles}, expected >= 1")
+    if backend not in ("jax", "numpy"):
+        raise InputError(f"backend: got {backend!r}, expected 'jax' or 'numpy'")
+    cov0 = None if cov0 is None else np.asarray(cov0, dtype=float)
+    args = jax.tree_util.tree_map(jnp.asarray, args)
+    vec = _parts_walkers(log_prob)
+    k_ens, w = n_ensembles, nwalkers
+    n_e = n_parts * k_ens
+
+    def lp_fn(q):
+        return _evaluate(vec, q, args, n_parts, k_ens)
+
+    # starts: per part, K independent balls; redraw non-finite walkers
+    rng = np.random.default_rng(np.random.SeedSequence(seed))
+    coords = np.empty((n_e, w, ndim))
+    for p in range(n_parts):
+        part_args = jax.tree_util.tree_map(lambda a, p=p: a[p], args)
+        c = None if cov0 is None else cov0[p]
+        root = _sqrt_psd(_start_cov(log_prob, x0[p], part_args, c, ndim)) * init_scale
+        noise = rng.standard_normal((k_ens, w, ndim))
+        coords[p * k_ens : (p + 1) * k_ens] = x0[p] + noise @ root.T
+    lp = lp_fn(coords)
+    for _ in range(100):
+        bad = ~np.isfinite(lp)
+        if not bad.any():
+            break
+        ens = np.nonzero(bad)[0] // k_ens
+        # redraw around the part's x0 with its own ball
+        for p in np.unique(ens):
+            part_args = jax.tree_util.tree_map(lambda a, p=p: a[p], args)
+            c = None if cov0 is None else cov0[p]
+            root = _sqrt_psd(_start_cov(log_prob, x0[p], part_args, c, ndim)) * init_scale
+            sel = bad & (np.arange(n_e)[:, None] // k_ens == p)
+            coords[sel] = x0[p] + rng.standard_normal((int(sel.sum()), ndim)) @ root.T
+        lp = np.where(bad, lp_fn(coords), lp)
+    if not np.all(np.isfinite(lp)):
+        parts_bad = sorted(set((np.nonzero(~np.isfinite(lp))[0] // k_ens).tolist()))
+        raise AnalysisError(
+            f"could not start walkers with a finite log_prob for part(s) {parts_bad} "
+            "(after 100 redraws); check x0 and the prior supports, or lower init_scale"
+        )
+
+    n_keep = (nsteps - burn + thin - 1) // thin
+    h = w // 2
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=nsteps, desc=f"lockstep ensembles ({n_parts} parts x {k_ens})")
+    t0 = time.perf_counter()
+    if backend == "jax":
+        kept, kept_lp, n_acc, steps_run = _run_jax(
+            log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep,
+            int(rng.integers(2**31)), bar,
+        )  # fmt: skip
+    else:
+        kept = np.empty((n_keep, n_e, w, ndim))
+        kept_lp = np.empty((n_keep, n_e, w))
+        n_acc = np.zeros((n_e, w))
+        steps_run = nsteps
+        slot = 0
+        for step in range(nsteps):
+            perm = np.argsort(rng.random((n_e, w)), axis=1)  # emcee's random split
+            first, second = perm[:, :h], perm[:, h:]
+            rows = np.arange(n_e)[:, None]
+            acc = _half_step(rng, coords, lp, first, second, moves, ndim, lp_fn)
+            n_acc[rows, first] += acc
+            acc = _half_step(rng, coords, lp, second, first, moves, ndim, lp_fn)
+            n_acc[rows, second] += acc
+            if step >= burn and (step - burn) % thin == 0:
+                kept[slot], kept_lp[slot] = coords, lp
+                slot += 1
+            if bar is not None and (step % 50 == 49 or step == nsteps - 1):
+                bar.update(step + 1 - bar.n)
+    wall = time.perf_counter() - t0
+    if bar is not None:
+        bar.close()
+
+    out, failed = [], []
+    for p in range(n_parts):
+        sl = slice(p * k_ens, (p + 1) * k_ens)
+        kp = kept[:, sl].transpose(1, 0, 2, 3)  # (K, S, W, d)
+        tau, tau_max, reliable, ess, rhat = _diagnose(kp, thin, tau_factor)
+        # a chain too short (or stuck) for an estimate: tau unknown, never trusted
+        unknown = ~np.isfinite(tau_max)
+        tau = np.where(np.isfinite(tau), tau, float(nsteps))
+        tau_max = np.where(unknown, float(nsteps), tau_max)
+        reliable = reliable & ~unknown
+        ess = np.where(np.isfinite(ess), ess, 0.0)
+        problems = _problems(
+            names, tau_max, reliable, ess, rhat, kp.shape[1], nsteps=nsteps, burn=burn,
+            thin=thin, nwalkers=w, rhat_max=rhat_max, min_ess=min_ess, tau_factor=tau_factor,
+            n_ensembles=k_ens,
+        )  # fmt: skip
+        s = kp.shape[1]
+        out.append(
+            Posterior(
+                names=names,
+                chains=_frozen(kp.transpose(1, 0, 2, 3).reshape(s, k_ens * w, ndim)),
+                log_prob=_frozen(kept_lp[:, sl].reshape(s, k_ens * w)),
+                acceptance_fraction=_frozen((n_acc[sl] / steps_run).reshape(-1)),
+                tau=_frozen(tau),
+                tau_reliable=_frozen(reliable),
+                ess=_frozen(ess),
+                rhat=_frozen(rhat),
+                converged=not problems,
+                problems=tuple(problems),
+                n_ensembles=k_ens,
+                nwalkers=w,
+                nsteps=nsteps,
+                burn=burn,
+                thin=thin,
+                wall_time=wall / n_parts,
+                criteria={"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor},
+            )
+        )
+        if problems:
+            failed.append((p, problems))
+    if failed and on_fail != "ignore":
+        msg = f"MCMC runs of {len(failed)} of {n_parts} parts have not converged:\n" + "\n".join(
+            f"  part {p}: " + "; ".join(pr) for p, pr in failed
+        )
+        if on_fail == "raise":
+            raise ConvergenceError(msg)
+        warnings.warn(msg, ConvergenceWarning, stacklevel=2)
+    return out
+
+
+def fit_profiles_bayes(
+    profile,
+    part_ids,
+    feature_ids,
+    machine_points,
+    *,
+    starts,
+    sources: dict,
+    ball_radius: float,
+    transform=None,
+    sigma: float,
+    likelihood: str = "gaussian",
+    nu: float = 4.0,
+    approach=None,
+    nsteps: int = 3000,
+    nwalkers: int | None = None,
+    n_ensembles: int = 4,
+    seed: int = 0,
+    progress: bool = True,
+    on_fail: str = "warn",
+    moves: str | None = "de",
+    file: str | None = None,
+):
+    """[`fit_profile_bayes`][] for many parts: parts with the same pattern of
+    triggers (feature of each point, in order) share one compiled log posterior
+    and are sampled together by [`sample_posteriors`][].
+
+    **Arguments:** `part_ids`, `feature_ids`, `machine_points` (and `approach`)
+    per trigger, as in `fit_profile_bayes`; `starts`: `{part: {feature: deviation}}`
+    (e.g. `BatchFit.values`); the rest as `fit_profile_bayes`.
+
+    **Returns:** `{part: BayesProfileFit}` in the order of first appearance.
+    """
+    from ..geometry import MachineTransform
+    from ._bayes_profile import BayesProfileFit, profile_log_posterior
+
+    transform = MachineTransform() if transform is None else transform
+    part_ids = np.asarray(part_ids).astype(str)
+    feature_ids = np.asarray(feature_ids).astype(str)
+    machine_points = np.asarray(machine_points, dtype=float)
+    order = list(dict.fromkeys(part_ids.tolist()))
+    patterns: dict[tuple, list[str]] = {}
+    rows_of = {}
+    for p in order:
+        rows = np.flatnonzero(part_ids == p)
+        rows_of[p] = rows
+        patterns.setdefault(tuple(feature_ids[rows].tolist()), []).append(p)
+    out = {}
+    for g, (pattern, parts) in enumerate(patterns.items()):
+        log_prob, lay, priors = profile_log_posterior(
+            profile, pattern, sources=sources, ball_radius=ball_radius, transform=transform,
+            sigma=sigma, likelihood=likelihood, nu=nu, with_approach=approach is not None,
+            file=file,
+        )  # fmt: skip
+        x0 = np.zeros((len(parts), len(lay.names)))
+        for i, p in enumerate(parts):
+            for f, sl in lay.features:
+                x0[i, sl] = np.asarray(starts[p][f.id])
+            for name, k in lay.nuisance:
+                x0[i, k] = priors[name].mean
+            if lay.sigma_index is not None:
+                x0[i, lay.sigma_index] = sigma
+        pts = np.stack([machine_points[rows_of[p]] for p in parts])
+        appr = None if approach is None else np.stack([approach[rows_of[p]] for p in parts])
+        posts = sample_posteriors(
+            log_prob, x0, names=lay.names, args=(pts, appr), nwalkers=nwalkers, nsteps=nsteps,
+            seed=seed + g, progress=progress, n_ensembles=n_ensembles, on_fail=on_fail,
+            moves=moves,
+        )  # fmt: skip
+        for p, post in zip(parts, posts, strict=True):
+            out[p] = BayesProfileFit(profile, post, lay, likelihood, p)
+    return {p: out[p] for p in order}
