@@ -36,17 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _robust
-from ._least_squares import (
-    _COV_DOF,
-    _COV_NONFINITE,
-    _COV_OK,
-    _COV_ROBUST,
-    _COV_SINGULAR,
-    STATIONARY_RTOL,
-    LsqArrays,
-    Status,
-    _stages,
-)
+from ._least_squares import Status, _analyse, _stages, _statistics
 
 __all__ = ["kernel_solver"]
 
@@ -103,7 +93,6 @@ def kernel_solver(fn, p: int, loss: str, rtol: float, atol: float):
         args = (points, geom, ball_radius)
         mask = w > 0
         wsqrt = jnp.sqrt(jnp.where(mask, w, 0.0))
-        n = points.shape[0]
         eps = jnp.finfo(float).eps
 
         def weighted(y):
@@ -200,106 +189,10 @@ def kernel_solver(fn, p: int, loss: str, rtol: float, atol: float):
         s_final = s_all[-1] if robust else jnp.asarray(jnp.nan)
         code = jnp.where(ok, int(Status.SUCCESSFUL), int(Status.MAX_STEPS_REACHED))
 
-        # ---- the statistics of `_solve_core`, at the solution
-        n_used = jnp.sum(mask).astype(jnp.int32)
-        dof = n_used - p
-        dof_f = jnp.maximum(dof, 1).astype(float)
-        n_f = jnp.maximum(n_used, 1).astype(float)
-        r = fn(y, args)
-        jac = jax.jacfwd(fn)(y, args)
-        e = jnp.where(mask, wsqrt * r, 0.0)
-        jw = jnp.where(mask[:, None], wsqrt[:, None] * jac, 0.0)
-        if robust:
-            zz = (e / s_final) ** 2
-            rw = jnp.where(mask, _robust.rho_prime(final_id, zz), 0.0)
-            cost = 0.5 * jnp.sum(e * e * _robust.rho_over_z(final_id, zz))
-        else:
-            rw = mask.astype(float)
-            cost = 0.5 * jnp.sum(e * e)
-        colnorm = jnp.linalg.norm(jw, axis=0)
-        colnorm_safe = jnp.where(colnorm > 0, colnorm, 1.0)
-        finite = jnp.all(jnp.isfinite(jw)) & jnp.all(jnp.isfinite(e))
-        b = jnp.where(finite, jw / colnorm_safe, 0.0)
-        u_mat, sv, vt = jnp.linalg.svd(b, full_matrices=False)
-        keep = sv > sv[0] * max(n, p) * eps
-        sinv = jnp.where(keep, 1.0 / jnp.where(keep, sv, 1.0), 0.0)
-        v_scaled = vt.T * sinv / colnorm_safe[:, None]
-        delta = -v_scaled @ (u_mat.T @ jnp.where(finite, rw * e, 0.0))
-        rss = jnp.sum(e * e)
-        if robust:
-            dpsi = _robust.psi_prime(final_id, e / s_final)
-            w3 = _robust.rho_prime(final_id, jnp.asarray((3.0 / tuning) ** 2))
-            outlier = mask & (rw < w3)
-        else:
-            outlier = jnp.zeros(n, dtype=bool)
-        singular = ~keep[-1] | jnp.any(colnorm == 0)
-        cond = jnp.where(singular, jnp.inf, sv[0] / jnp.where(sv[-1] > 0, sv[-1], 1.0))
-        a_inv = v_scaled @ v_scaled.T
-        robust_ok = jnp.asarray(True)
-        sigma_given = jnp.isfinite(sigma)
-        if not robust:
-            factor = jnp.where(sigma_given, sigma**2, rss / dof_f)
-        else:
-            mean_dpsi = jnp.sum(jnp.where(mask, dpsi, 0.0)) / n_f
-            var_dpsi = jnp.sum(jnp.where(mask, (dpsi - mean_dpsi) ** 2, 0.0)) / n_f
-            safe_mean = jnp.where(mean_dpsi > 0, mean_dpsi, 1.0)
-            k_corr = 1.0 + p / n_f * var_dpsi / safe_mean**2
-            tau2 = jnp.sum((rw * e) ** 2) / dof_f
-            factor = k_corr**2 * tau2 / safe_mean**2
-            robust_ok = (mean_dpsi > 0) & (jnp.sum(rw) >= p + 1)
-        cov = factor * a_inv
-        if robust:
-            bw = jnp.sqrt(rw)[:, None] * b
-            _, sv_w, vt_w = jnp.linalg.svd(bw, full_matrices=False)
-            keep_w = sv_w > sv_w[0] * max(n, p) * eps
-            singular = singular | (sigma_given & ~keep_w[-1])
-            inv_w = jnp.where(keep_w, 1.0 / jnp.where(keep_w, sv_w, 1.0), 0.0)
-            vw = vt_w.T * inv_w / colnorm_safe[:, None]
-            aw_inv = vw @ vw.T
-            meat = jw.T @ ((rw**2)[:, None] * jw)
-            cov = jnp.where(sigma_given, sigma**2 * aw_inv @ meat @ aw_inv, cov)
-        cov = 0.5 * (cov + cov.T)
-        cov_code = jnp.where(
-            ~finite,
-            _COV_NONFINITE,
-            jnp.where(
-                singular,
-                _COV_SINGULAR,
-                jnp.where(
-                    (dof <= 0) & ~sigma_given, _COV_DOF, jnp.where(robust_ok, _COV_OK, _COV_ROBUST)
-                ),
-            ),
-        ).astype(jnp.int32)
-        cov = jnp.where(cov_code == _COV_OK, cov, jnp.nan)
-        if robust:
-            resid_sd = _robust.mad_sigma(e, mask)
-        else:
-            resid_sd = jnp.where(dof > 0, jnp.sqrt(rss / dof_f), jnp.nan)
-        all_finite = jnp.all(jnp.isfinite(y)) & jnp.all(jnp.isfinite(e))
-        code = jnp.where(all_finite, code, int(Status.NONFINITE))
-        code = jnp.where((code == Status.SUCCESSFUL) & ~robust_ok, int(Status.DEGENERATE), code)
-        se = jnp.sqrt(jnp.where(cov_code == _COV_OK, jnp.abs(jnp.diagonal(cov)), 0.0))
-        tol = STATIONARY_RTOL * jnp.maximum(jnp.abs(y), se) + 10.0 * atol
-        stalled = ~jnp.all(jnp.abs(delta) <= tol)
-        code = jnp.where((code == Status.SUCCESSFUL) & stalled, int(Status.STALLED), code)
-        return LsqArrays(
-            params_flat=y,
-            status_code=code.astype(jnp.int32),
-            residuals=r,
-            weights=w * rw,
-            robust_weights=rw,
-            outlier=outlier,
-            covariance=cov,
-            covariance_code=cov_code,
-            condition=cond,
-            jacobian=jac,
-            rss=rss,
-            cost=cost,
-            n_used=n_used,
-            dof=dof,
-            residual_sd=resid_sd,
-            scale=s_final,
-            steps=jnp.asarray(steps, dtype=jnp.int32),
+        # the statistics of `_solve_core`, at the solution: the same functions
+        info = _analyse(fn, args, y, mask, wsqrt, s_final, final_id, None, robust)
+        return _statistics(
+            info, y, code, steps, s_final, mask, w, sigma, final_id, tuning, None, robust, atol
         )
 
     return jax.jit(jax.vmap(one, in_axes=(0, 0, None, 0, None, None)))

@@ -323,6 +323,143 @@ def _is_linear(loss) -> bool:
     return _robust.loss_id(loss) == 0
 
 
+def _analyse(fn, args, y, mask, wsqrt, s_final, final_id, custom, robust):
+    """Residuals, Jacobian, robust weights and the SVD of the column-scaled
+    weighted Jacobian at `y`, and the step `-(J_w^T J_w)^-1 J_w^T W e` (the
+    Gauss-Newton step for the linear loss; zero exactly where the gradient
+    `J_w^T W e` of the robust objective is zero)."""
+    n, p = mask.shape[0], y.shape[0]
+    eps = jnp.finfo(float).eps
+    r = fn(y, args)
+    jac = jax.jacfwd(fn)(y, args)
+    e = jnp.where(mask, wsqrt * r, 0.0)
+    jw = jnp.where(mask[:, None], wsqrt[:, None] * jac, 0.0)
+    if robust:
+        zz = (e / s_final) ** 2
+        rw = jnp.where(mask, _robust.rho_prime(final_id, zz, custom), 0.0)
+        cost = 0.5 * jnp.sum(e * e * _robust.rho_over_z(final_id, zz, custom))
+    else:
+        rw = mask.astype(float)
+        cost = 0.5 * jnp.sum(e * e)
+    colnorm = jnp.linalg.norm(jw, axis=0)
+    colnorm_safe = jnp.where(colnorm > 0, colnorm, 1.0)
+    finite = jnp.all(jnp.isfinite(jw)) & jnp.all(jnp.isfinite(e))
+    b = jnp.where(finite, jw / colnorm_safe, 0.0)
+    u_mat, sv, vt = jnp.linalg.svd(b, full_matrices=False)
+    keep = sv > sv[0] * max(n, p) * eps
+    sinv = jnp.where(keep, 1.0 / jnp.where(keep, sv, 1.0), 0.0)
+    v_scaled = vt.T * sinv / colnorm_safe[:, None]  # (J_w^T J_w)^+ = v v^T
+    delta = -v_scaled @ (u_mat.T @ jnp.where(finite, rw * e, 0.0))
+    info = dict(r=r, jac=jac, e=e, jw=jw, rw=rw, cost=cost, colnorm=colnorm, b=b)
+    info.update(sv=sv, keep=keep, v_scaled=v_scaled, delta=delta, finite=finite)
+    return info
+
+
+def _statistics(
+    info, y, code, steps, s_final, mask, w, sigma, final_id, tuning, custom, robust, atol
+):
+    """The result at the solution `y` from `_analyse`'s `info`: outliers, covariance
+    (linear or Huber's robust sandwich, or from a known `sigma`) with its code,
+    residual SD, and the final status (non-finite, degenerate, stalled). Shared by
+    `_solve_core` and the batch kernel, so both report the same numbers."""
+    n, p = mask.shape[0], y.shape[0]
+    eps = jnp.finfo(float).eps
+    n_used = jnp.sum(mask).astype(jnp.int32)
+    dof = n_used - p
+    dof_f = jnp.maximum(dof, 1).astype(float)
+    n_f = jnp.maximum(n_used, 1).astype(float)
+    r, jac, e, jw, rw = (info[k] for k in ("r", "jac", "e", "jw", "rw"))
+    cost, finite, keep, sv = info["cost"], info["finite"], info["keep"], info["sv"]
+    v_scaled, colnorm = info["v_scaled"], info["colnorm"]
+    rss = jnp.sum(e * e)
+    if robust:
+        dpsi = _robust.psi_prime(final_id, e / s_final, custom)
+        w3 = _robust.rho_prime(final_id, jnp.asarray((3.0 / tuning) ** 2), custom)
+        outlier = mask & (rw < w3)
+    else:
+        outlier = jnp.zeros(n, dtype=bool)
+
+    singular = ~keep[-1] | jnp.any(colnorm == 0)
+    cond = jnp.where(singular, jnp.inf, sv[0] / jnp.where(sv[-1] > 0, sv[-1], 1.0))
+    a_inv = v_scaled @ v_scaled.T  # (J_w^T J_w)^-1
+    robust_ok = jnp.asarray(True)
+    sigma_given = jnp.isfinite(sigma)
+    if not robust:
+        factor = jnp.where(sigma_given, sigma**2, rss / dof_f)
+    else:
+        # Huber (1981, sec. 7.6): K^2 [sum psi^2/dof] / [mean psi']^2 (J^T J)^-1
+        mean_dpsi = jnp.sum(jnp.where(mask, dpsi, 0.0)) / n_f
+        var_dpsi = jnp.sum(jnp.where(mask, (dpsi - mean_dpsi) ** 2, 0.0)) / n_f
+        safe_mean = jnp.where(mean_dpsi > 0, mean_dpsi, 1.0)
+        k_corr = 1.0 + p / n_f * var_dpsi / safe_mean**2
+        tau2 = jnp.sum((rw * e) ** 2) / dof_f
+        factor = k_corr**2 * tau2 / safe_mean**2
+        # fewer effective points than parameters: (nearly) everything rejected
+        robust_ok = (mean_dpsi > 0) & (jnp.sum(rw) >= p + 1)
+    cov = factor * a_inv
+    if robust:
+        # known sigma: weighted least squares with the final weights held fixed,
+        # sigma^2 (J^T W J)^-1 (J^T W^2 J) (J^T W J)^-1
+        bw = jnp.sqrt(rw)[:, None] * info["b"]
+        _, sv_w, vt_w = jnp.linalg.svd(bw, full_matrices=False)
+        keep_w = sv_w > sv_w[0] * max(n, p) * eps
+        singular = singular | (sigma_given & ~keep_w[-1])
+        inv_w = jnp.where(keep_w, 1.0 / jnp.where(keep_w, sv_w, 1.0), 0.0)
+        vw = vt_w.T * inv_w / jnp.where(colnorm > 0, colnorm, 1.0)[:, None]
+        aw_inv = vw @ vw.T
+        meat = jw.T @ ((rw**2)[:, None] * jw)
+        cov = jnp.where(sigma_given, sigma**2 * aw_inv @ meat @ aw_inv, cov)
+    cov = 0.5 * (cov + cov.T)
+    cov_code = jnp.where(
+        ~finite,
+        _COV_NONFINITE,
+        jnp.where(
+            singular,
+            _COV_SINGULAR,
+            jnp.where(
+                (dof <= 0) & ~sigma_given,
+                _COV_DOF,
+                jnp.where(robust_ok, _COV_OK, _COV_ROBUST),
+            ),
+        ),
+    ).astype(jnp.int32)
+    cov = jnp.where(cov_code == _COV_OK, cov, jnp.nan)
+
+    if robust:
+        resid_sd = _robust.mad_sigma(e, mask)
+    else:
+        resid_sd = jnp.where(dof > 0, jnp.sqrt(rss / dof_f), jnp.nan)
+    all_finite = jnp.all(jnp.isfinite(y)) & jnp.all(jnp.isfinite(e))
+    code = jnp.where(all_finite, code, int(Status.NONFINITE))
+    code = jnp.where((code == Status.SUCCESSFUL) & ~robust_ok, int(Status.DEGENERATE), code)
+    # never report a non-stationary point as a success: the step left (see
+    # `_analyse`) must be negligible against the parameter and its standard error
+    se = jnp.sqrt(jnp.where(cov_code == _COV_OK, jnp.abs(jnp.diagonal(cov)), 0.0))
+    tol = STATIONARY_RTOL * jnp.maximum(jnp.abs(y), se) + 10.0 * atol
+    stalled = ~jnp.all(jnp.abs(info["delta"]) <= tol)
+    code = jnp.where((code == Status.SUCCESSFUL) & stalled, int(Status.STALLED), code)
+    code = code.astype(jnp.int32)
+    return LsqArrays(
+        params_flat=y,
+        status_code=code,
+        residuals=r,
+        weights=w * rw,
+        robust_weights=rw,
+        outlier=outlier,
+        covariance=cov,
+        covariance_code=cov_code,
+        condition=cond,
+        jacobian=jac,
+        rss=rss,
+        cost=cost,
+        n_used=n_used,
+        dof=dof,
+        residual_sd=resid_sd,
+        scale=s_final,
+        steps=jnp.asarray(steps, dtype=jnp.int32),
+    )
+
+
 @eqx.filter_jit
 def _solve_core(
     fn,
@@ -395,42 +532,12 @@ def _solve_core(
         (z, code, steps), s_all = jax.lax.scan(stage, init, (stage_ids, stage_cs))
         s_final = s_all[-1]
 
-    n_used = jnp.sum(mask).astype(jnp.int32)
-    dof = n_used - p
-    dof_f = jnp.maximum(dof, 1).astype(float)
-    n_f = jnp.maximum(n_used, 1).astype(float)
+    dof_f = jnp.maximum(jnp.sum(mask) - p, 1).astype(float)
     robust = stage_ids is not None
-    eps = jnp.finfo(float).eps
     g_final = _final_residuals(weighted, stage_ids, s_final, final_id, custom)
 
     def analyse(y):
-        """Residuals, Jacobian, robust weights and the SVD of the column-scaled
-        weighted Jacobian at `y`, and the step `-(J_w^T J_w)^-1 J_w^T W e` (the
-        Gauss-Newton step for the linear loss; zero exactly where the gradient
-        `J_w^T W e` of the robust objective is zero)."""
-        r = fn(y, args)
-        jac = jax.jacfwd(fn)(y, args)
-        e = jnp.where(mask, wsqrt * r, 0.0)
-        jw = jnp.where(mask[:, None], wsqrt[:, None] * jac, 0.0)
-        if robust:
-            zz = (e / s_final) ** 2
-            rw = jnp.where(mask, _robust.rho_prime(final_id, zz, custom), 0.0)
-            cost = 0.5 * jnp.sum(e * e * _robust.rho_over_z(final_id, zz, custom))
-        else:
-            rw = mask.astype(float)
-            cost = 0.5 * jnp.sum(e * e)
-        colnorm = jnp.linalg.norm(jw, axis=0)
-        colnorm_safe = jnp.where(colnorm > 0, colnorm, 1.0)
-        finite = jnp.all(jnp.isfinite(jw)) & jnp.all(jnp.isfinite(e))
-        b = jnp.where(finite, jw / colnorm_safe, 0.0)
-        u_mat, sv, vt = jnp.linalg.svd(b, full_matrices=False)
-        keep = sv > sv[0] * max(n, p) * eps
-        sinv = jnp.where(keep, 1.0 / jnp.where(keep, sv, 1.0), 0.0)
-        v_scaled = vt.T * sinv / colnorm_safe[:, None]  # (J_w^T J_w)^+ = v v^T
-        delta = -v_scaled @ (u_mat.T @ jnp.where(finite, rw * e, 0.0))
-        info = dict(r=r, jac=jac, e=e, jw=jw, rw=rw, cost=cost, colnorm=colnorm, b=b)
-        info.update(sv=sv, keep=keep, v_scaled=v_scaled, delta=delta, finite=finite)
-        return info
+        return _analyse(fn, args, y, mask, wsqrt, s_final, final_id, custom, robust)
 
     def polish(k, carry):
         """Steps after the solver: they take a solution that the solver's Cauchy test
@@ -459,95 +566,8 @@ def _solve_core(
     shapes = jax.eval_shape(analyse, y)
     info0 = jax.tree_util.tree_map(lambda a: jnp.zeros(a.shape, a.dtype), shapes)
     y, info = jax.lax.fori_loop(0, POLISH_STEPS + 1, polish, (y, info0))
-    r, jac, e, jw, rw = (info[k] for k in ("r", "jac", "e", "jw", "rw"))
-    cost, finite, keep, sv = info["cost"], info["finite"], info["keep"], info["sv"]
-    v_scaled, colnorm = info["v_scaled"], info["colnorm"]
-    rss = jnp.sum(e * e)
-    if robust:
-        dpsi = _robust.psi_prime(final_id, e / s_final, custom)
-        w3 = _robust.rho_prime(final_id, jnp.asarray((3.0 / tuning) ** 2), custom)
-        outlier = mask & (rw < w3)
-    else:
-        outlier = jnp.zeros(n, dtype=bool)
-
-    singular = ~keep[-1] | jnp.any(colnorm == 0)
-    cond = jnp.where(singular, jnp.inf, sv[0] / jnp.where(sv[-1] > 0, sv[-1], 1.0))
-    a_inv = v_scaled @ v_scaled.T  # (J_w^T J_w)^-1
-    robust_ok = jnp.asarray(True)
-    sigma_given = jnp.isfinite(sigma)
-    if not robust:
-        factor = jnp.where(sigma_given, sigma**2, rss / dof_f)
-    else:
-        # Huber (1981, sec. 7.6): K^2 [sum psi^2/dof] / [mean psi']^2 (J^T J)^-1
-        mean_dpsi = jnp.sum(jnp.where(mask, dpsi, 0.0)) / n_f
-        var_dpsi = jnp.sum(jnp.where(mask, (dpsi - mean_dpsi) ** 2, 0.0)) / n_f
-        safe_mean = jnp.where(mean_dpsi > 0, mean_dpsi, 1.0)
-        k_corr = 1.0 + p / n_f * var_dpsi / safe_mean**2
-        tau2 = jnp.sum((rw * e) ** 2) / dof_f
-        factor = k_corr**2 * tau2 / safe_mean**2
-        # fewer effective points than parameters: (nearly) everything rejected
-        robust_ok = (mean_dpsi > 0) & (jnp.sum(rw) >= p + 1)
-    cov = factor * a_inv
-    if robust:
-        # known sigma: weighted least squares with the final weights held fixed,
-        # sigma^2 (J^T W J)^-1 (J^T W^2 J) (J^T W J)^-1
-        bw = jnp.sqrt(rw)[:, None] * info["b"]
-        _, sv_w, vt_w = jnp.linalg.svd(bw, full_matrices=False)
-        keep_w = sv_w > sv_w[0] * max(n, p) * eps
-        singular = singular | (sigma_given & ~keep_w[-1])
-        inv_w = jnp.where(keep_w, 1.0 / jnp.where(keep_w, sv_w, 1.0), 0.0)
-        vw = vt_w.T * inv_w / jnp.where(colnorm > 0, colnorm, 1.0)[:, None]
-        aw_inv = vw @ vw.T
-        meat = jw.T @ ((rw**2)[:, None] * jw)
-        cov = jnp.where(sigma_given, sigma**2 * aw_inv @ meat @ aw_inv, cov)
-    cov = 0.5 * (cov + cov.T)
-    cov_code = jnp.where(
-        ~finite,
-        _COV_NONFINITE,
-        jnp.where(
-            singular,
-            _COV_SINGULAR,
-            jnp.where(
-                (dof <= 0) & ~sigma_given,
-                _COV_DOF,
-                jnp.where(robust_ok, _COV_OK, _COV_ROBUST),
-            ),
-        ),
-    ).astype(jnp.int32)
-    cov = jnp.where(cov_code == _COV_OK, cov, jnp.nan)
-
-    if robust:
-        resid_sd = _robust.mad_sigma(e, mask)
-    else:
-        resid_sd = jnp.where(dof > 0, jnp.sqrt(rss / dof_f), jnp.nan)
-    all_finite = jnp.all(jnp.isfinite(y)) & jnp.all(jnp.isfinite(e))
-    code = jnp.where(all_finite, code, int(Status.NONFINITE))
-    code = jnp.where((code == Status.SUCCESSFUL) & ~robust_ok, int(Status.DEGENERATE), code)
-    # never report a non-stationary point as a success: the step left (see
-    # `analyse`) must be negligible against the parameter and its standard error
-    se = jnp.sqrt(jnp.where(cov_code == _COV_OK, jnp.abs(jnp.diagonal(cov)), 0.0))
-    tol = STATIONARY_RTOL * jnp.maximum(jnp.abs(y), se) + 10.0 * atol
-    stalled = ~jnp.all(jnp.abs(info["delta"]) <= tol)
-    code = jnp.where((code == Status.SUCCESSFUL) & stalled, int(Status.STALLED), code)
-    code = code.astype(jnp.int32)
-    return LsqArrays(
-        params_flat=y,
-        status_code=code,
-        residuals=r,
-        weights=w * rw,
-        robust_weights=rw,
-        outlier=outlier,
-        covariance=cov,
-        covariance_code=cov_code,
-        condition=cond,
-        jacobian=jac,
-        rss=rss,
-        cost=cost,
-        n_used=n_used,
-        dof=dof,
-        residual_sd=resid_sd,
-        scale=s_final,
-        steps=jnp.asarray(steps, dtype=jnp.int32),
+    return _statistics(
+        info, y, code, steps, s_final, mask, w, sigma, final_id, tuning, custom, robust, atol
     )
 
 
