@@ -73,6 +73,8 @@ class CapabilityJob:
     at: str
     sources: tuple
     file: str | None = None
+    declared: float | None = None
+    declared_dof: float = 8.0
 
 
 def _fix_of(study) -> dict[str, tuple]:
@@ -95,6 +97,8 @@ def capability_job(study, *, method: str, at: str, sources: Mapping[str, float],
         loss=study.fit.loss,
         scale=float(robust_scale(study)),
         sigma=float(study.probe.repeatability) if study.fit.known_sigma else None,
+        declared=float(study.probe.repeatability),
+        declared_dof=float(study.probe.repeatability_dof),
         fix=tuple(sorted(_fix_of(study).items())),
         min_points=(("line", study.fit.min_points_line), ("arc", study.fit.min_points_arc)),
         at=at,
@@ -117,6 +121,8 @@ def _fit_job(job: CapabilityJob, part_ids, feature_ids, machine_points, lines, m
         loss=job.loss,
         scale=job.scale,
         sigma=job.sigma,
+        declared=job.declared,
+        declared_dof=job.declared_dof,
         fix=dict(job.fix),
         lines=lines,
         min_points=dict(job.min_points),
@@ -156,6 +162,8 @@ def fit_study_batch(
         loss=study.fit.loss,
         scale=robust_scale(study),
         sigma=study.probe.repeatability if study.fit.known_sigma else None,
+        declared=study.probe.repeatability,
+        declared_dof=study.probe.repeatability_dof,
         fix=_fix_of(study),
         lines=probe.lines,
         min_points={"line": study.fit.min_points_line, "arc": study.fit.min_points_arc},
@@ -516,7 +524,7 @@ def bayes_study_batch(
     likelihood keeps every trigger). **Returns:** `{part: BayesProfileFit}`.
     """
     from .fit import fit_profiles_bayes
-    from .pipeline import load_probe_data
+    from .pipeline import bayes_sources, load_probe_data
 
     probe = load_probe_data(study) if probe is None else probe
     batch = fit_study_batch(study, probe, method="robust") if batch is None else batch
@@ -535,7 +543,7 @@ def bayes_study_batch(
         probe.feature[keep],
         probe.points[keep],
         starts=starts,
-        sources=dict(study.sources),
+        sources=bayes_sources(study),
         ball_radius=study.probe.ball_radius,
         transform=study.transform,
         sigma=study.probe.repeatability,

@@ -83,6 +83,7 @@ from .export import (
     write_linuxcnc_comp,
     write_text_atomic,
 )
+from .fit import effective_dof
 from .fit._features import _arc_distance, _geometry_args, _line_distance
 from .geometry import Arc, Line, part_to_machine
 
@@ -202,10 +203,17 @@ class Characteristic:
     u_systematic: float
     tolerance: tuple[float, float]
     n_points: int | None = None
+    dof_fit: float = math.inf
 
     @property
     def sd(self) -> float:
         return math.hypot(self.u_fit, self.u_systematic)
+
+    @property
+    def dof(self) -> float:
+        """Welch-Satterthwaite effective degrees of freedom of `sd`: `u_fit` carries the
+        probe sigma's `dof_fit`, the systematic sources are Type B (infinite)."""
+        return float(effective_dof(self.sd, self.u_fit, self.dof_fit))
 
     def __repr__(self) -> str:
         return (
@@ -224,7 +232,11 @@ def _at_label(t: float) -> str:
 
 
 def feature_characteristic(
-    fit, *, at: str = "mid", sources: Mapping[str, float] | None = None
+    fit,
+    *,
+    at: str = "mid",
+    sources: Mapping[str, float] | None = None,
+    dof: float = math.inf,
 ) -> Characteristic:
     """The [`Characteristic`][] of one `FeatureFit`.
 
@@ -234,6 +246,8 @@ def feature_characteristic(
     - `at`: `"mid"`, `"start"`, `"end"` or `"worst"` (see the module docstring).
     - `sources`: standard deviations of the systematic sources by name (mm, 1, rad),
       e.g. from the study; `None`: none.
+    - `dof`: degrees of freedom of the probe sigma the fit covariance was scaled by
+      (`ProfileFit.sigma.dof`; `inf` when known).
     """
     f = fit.feature
     if at == "worst":
@@ -269,6 +283,7 @@ def feature_characteristic(
         u_systematic=u_sys,
         tolerance=tuple(map(float, f.tolerance)),
         n_points=used,
+        dof_fit=float(dof),
     )
 
 
@@ -276,7 +291,8 @@ def characteristics(study, fit, *, at: str = "mid") -> dict[str, Characteristic]
     """[`Characteristic`][]s of every fitted feature of `fit` (profile order), with the
     study's systematic uncertainty sources."""
     sds = _source_sds(study)
-    return {f.id: feature_characteristic(f, at=at, sources=sds) for f in fit}
+    dof = fit.sigma.dof if getattr(fit, "sigma", None) is not None else math.inf
+    return {f.id: feature_characteristic(f, at=at, sources=sds, dof=dof) for f in fit}
 
 
 # --------------------------------------------------------------------------- decisions
@@ -401,14 +417,14 @@ class DecisionTable:
 
 
 def _estimate(feature, est):
-    """(mean, sd, samples, n_points, u_sys, characteristic) from one estimate."""
+    """(mean, sd, samples, n_points, u_sys, characteristic, dof) from one estimate."""
     if isinstance(est, Characteristic):
-        return est.mean, est.sd, None, est.n_points, est.u_systematic, est
+        return est.mean, est.sd, None, est.n_points, est.u_systematic, est, est.dof
     if isinstance(est, Mapping):
-        unknown = set(est) - {"mean", "sd", "samples", "n_points", "u_systematic"}
+        unknown = set(est) - {"mean", "sd", "samples", "n_points", "u_systematic", "dof"}
         if unknown:
             raise InputError(
-                f"estimate keys must be mean, sd, samples, n_points, u_systematic; got "
+                f"estimate keys must be mean, sd, samples, n_points, u_systematic, dof; got "
                 f"{sorted(unknown)}",
                 feature=feature,
             )
@@ -419,15 +435,16 @@ def _estimate(feature, est):
             est.get("n_points"),
             float(est.get("u_systematic", 0.0)),
             None,
+            est.get("dof", math.inf),
         )
     if isinstance(est, tuple) and len(est) == 2:
-        return float(est[0]), float(est[1]), None, None, 0.0, None
+        return float(est[0]), float(est[1]), None, None, 0.0, None, math.inf
     try:
         arr = np.asarray(est, dtype=float)
     except (TypeError, ValueError):
         arr = np.zeros(0)
     if arr.ndim == 1 and arr.size >= 2:
-        return None, None, arr, None, 0.0, None
+        return None, None, arr, None, 0.0, None, math.inf
     raise InputError(
         f"an estimate is a Characteristic, (mean, sd), a mapping with mean/sd or samples, "
         f"or 1-D posterior draws; got {est!r}",
@@ -453,7 +470,7 @@ def decide_features(
 
     - `estimates`: by feature id, a [`Characteristic`][], a `(mean, sd)` pair, a
       mapping with `mean`, `sd` (or `samples`) and optionally `n_points`,
-      `u_systematic`, or 1-D posterior draws: what a Bayesian fit hands over.
+      `u_systematic`, `dof`, or 1-D posterior draws: what a Bayesian fit hands over.
     - `tolerances`: `(lower, upper)` limit deviations by feature id (mm).
     - `settings`, `run_index`: see `compensate.decide`.
     - `study`, `part`, `method`, `characteristic`, `unmeasured`: labels kept in the table.
@@ -464,7 +481,7 @@ def decide_features(
     for fid, est in estimates.items():
         if fid not in tolerances:
             raise InputError(f"no tolerance for feature {fid!r}", feature=fid)
-        mean, sd, samples, n_pts, u_sys, char = _estimate(fid, est)
+        mean, sd, samples, n_pts, u_sys, char, dof = _estimate(fid, est)
         if samples is not None and u_sys:
             u_sys = min(u_sys, float(np.std(samples, ddof=1)))
         elif sd is not None:
@@ -480,6 +497,7 @@ def decide_features(
                 u_systematic=u_sys,
                 run_index=run_index,
                 feature=fid,
+                dof=dof,
             )
         )
         chars.append(char)

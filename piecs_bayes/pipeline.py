@@ -29,6 +29,7 @@ __all__ = [
     "bayes_study",
     "toolpath_uncertainty",
     "pooled_sigma",
+    "bayes_sources",
     "adjust_study_program",
 ]
 
@@ -114,6 +115,8 @@ def fit_study(
             loss=loss,
             scale=robust_scale(study) if loss != "linear" else None,
             sigma=sigma,
+            declared=study.probe.repeatability,
+            declared_dof=study.probe.repeatability_dof,
             lines=data.lines,
             part=part,
         )
@@ -131,6 +134,8 @@ def fit_study(
         loss=study.fit.loss,
         scale=robust_scale(study),
         sigma=sigma,
+        declared=study.probe.repeatability,
+        declared_dof=study.probe.repeatability_dof,
         fix=fix,
         lines=data.lines,
         min_points={"line": study.fit.min_points_line, "arc": study.fit.min_points_arc},
@@ -169,16 +174,35 @@ def inliers(fit: ProfileFit, probe: ProbeData) -> ProbeData:
 
 
 def pooled_sigma(fit: ProfileFit) -> tuple[float, int]:
-    """Pooled residual standard deviation of the inliers over all features, and its dof."""
-    ss, dof = 0.0, 0
-    for f in fit:
-        keep = np.ones(f.n, dtype=bool)
-        keep[f.outliers] = False
-        ss += float(np.sum(f.residuals[keep] ** 2))
-        dof += int(keep.sum()) - (len(f.values) - len(f.fixed))
+    """Pooled residual standard deviation of the inliers over all features, and its dof
+    (without the declared prior: ``fit.sigma`` is what the uncertainties use)."""
+    from .fit._sigma import pooled_residuals
+
+    ss, dof = pooled_residuals(fit)
     if dof <= 0:
         raise InputError("too few points to estimate the probe repeatability from the residuals")
     return float(np.sqrt(ss / dof)), dof
+
+
+def bayes_sources(study: Study) -> dict:
+    """The study's uncertainty sources as the Bayesian fit takes them.
+
+    Unless the study declares the probe sigma known (``known_sigma = true``) or gives
+    ``repeatability`` its own prior under ``[uncertainty]``, the sigma is a parameter
+    with the declared repeatability as a scaled-inverse-chi-square prior worth
+    ``[probe] repeatability_dof`` degrees of freedom (the same rule as the
+    least-squares fits, docs/uncertainty.md); a weight of 0 is nearly Jeffreys' 1/sigma.
+    """
+    sources = {k: dict(v) for k, v in study.sources.items()}
+    if not study.fit.known_sigma and "repeatability" not in sources:
+        sources["repeatability"] = {
+            "dist": "scaled_inv_chi2",
+            "nu": max(float(study.probe.repeatability_dof), 1e-3),
+            "scale": float(study.probe.repeatability),
+        }
+    if study.fit.known_sigma:
+        sources.pop("repeatability", None)
+    return sources
 
 
 def bayes_study(
@@ -210,7 +234,7 @@ def bayes_study(
         use.points,
         start=fit.deviations,
         start_cov=fit.covariances,
-        sources=dict(study.sources),
+        sources=bayes_sources(study),
         ball_radius=study.probe.ball_radius,
         transform=study.transform,
         sigma=study.probe.repeatability,
@@ -240,9 +264,10 @@ def toolpath_uncertainty(
     """Uncertainty of the adjusted tool path: linearised (GUM) from the fit, and
     Monte Carlo (JCGM 101) from the posterior when ``bayes`` is given.
 
-    The linearised probe sigma is the known repeatability, or, when the study
-    declares ``repeatability`` as a source to estimate, the pooled residual
-    standard deviation (as the Bayesian model estimates it).
+    The linearised probe sigma and its degrees of freedom are the fit's
+    (``ProfileFit.sigma``: declared and known, or pooled over the part's features
+    with the declared repeatability as prior); intervals and bands use Student-t
+    quantiles with Welch-Satterthwaite effective degrees of freedom.
 
     **Returns:** ``{"linearised": ToolpathUncertainty, "monte_carlo": ... or None}``.
     """
@@ -251,7 +276,10 @@ def toolpath_uncertainty(
 
     data = inliers(fit, _part_data(study, probe, part or fit.part))
     gain = study.compensation.gain if gain is None else gain
-    sigma = pooled_sigma(fit)[0] if "repeatability" in study.sources else study.probe.repeatability
+    if fit.sigma is not None:  # the part's probe sigma rule (docs/uncertainty.md)
+        sigma, dof = fit.sigma.value, fit.sigma.dof
+    else:
+        sigma, dof = study.probe.repeatability, float("inf")
     source_sd = {}
     for name, spec in study.sources.items():
         if name in LINEARISED_SOURCES:
@@ -265,6 +293,8 @@ def toolpath_uncertainty(
         fit.deviations,
         ball_radius=study.probe.ball_radius,
         sigma=sigma,
+        dof=dof,
+        loss=_fit_loss(fit),
         transform=study.transform,
         source_sd=source_sd,
         approach=data.approach if "pretravel" in source_sd else None,
@@ -274,6 +304,13 @@ def toolpath_uncertainty(
     if bayes is not None:
         mc = monte_carlo_toolpath(study.profile, bayes.deviation_samples, gain=gain, grid=lin.grid)
     return {"linearised": lin, "monte_carlo": mc}
+
+
+def _fit_loss(fit: ProfileFit) -> str:
+    """The loss a profile fit minimised ("robust/huber", "joint/cauchy" -> the loss)."""
+    method = next(iter(fit)).method
+    loss = method.split("/")[-1] if "/" in method else "linear"
+    return "linear" if loss in ("lsq", "linear") else loss
 
 
 def adjust_study_program(study: Study, path: AdjustedPath, *, nose_radius=None, tool_table=None):

@@ -38,6 +38,7 @@ __all__ = [
     "demo_profile",
     "process_deviations",
     "simulate_probe",
+    "simulate_parts",
     "probe_csv_text",
     "write_demo",
     "write_batch",
@@ -179,6 +180,81 @@ def simulate_probe(
         "points": np.asarray(part_to_machine(part, transform)),
         "approach": np.vstack(app),
         "surface": np.vstack(surf),
+    }
+
+
+#: machine error sources `simulate_parts` can draw per part (as `[uncertainty]` names them)
+SIMULATED_SOURCES = ("ball_radius", "x_centre", "z_offset", "scale_x", "scale_z")
+
+
+def simulate_parts(
+    profile: Profile,
+    deviations: dict[str, np.ndarray],
+    n_parts: int,
+    *,
+    ball_radius: float,
+    transform: MachineTransform = MachineTransform(),
+    points: int | dict[str, int] = 8,
+    noise_sd: float = 0.001,
+    source_sd: dict[str, float] | None = None,
+    rng: np.random.Generator | int = 0,
+    margin: float = 0.1,
+) -> dict:
+    """`n_parts` probed parts at once (vectorised `simulate_probe`), each with its own
+    probe noise and its own draw of the machine error sources.
+
+    **Arguments:**
+
+    - `deviations`: true deviation per feature id, `(k,)` (every part) or `(n_parts, k)`.
+    - `source_sd`: standard deviations of normal per-part errors of the sources in
+      `SIMULATED_SOURCES` (the ball radius is off by `d`, the real transform is
+      `transform` plus the drawn errors); the fits should use the nominal values.
+    - the rest as `simulate_probe`.
+
+    **Returns:** `dict(part (str ids), feature, points (machine, radius X), errors
+    {source: (n_parts,)})`, points part by part, features in profile order.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    rng = np.random.default_rng(rng)
+    source_sd = dict(source_sd or {})
+    for name in source_sd:
+        if name not in SIMULATED_SOURCES:
+            raise ValueError(f"cannot simulate source {name!r}; expected {SIMULATED_SOURCES}")
+    errors = {n: rng.normal(0.0, sd, n_parts) for n, sd in source_sd.items()}
+    rb = ball_radius + errors.get("ball_radius", np.zeros(n_parts))
+    cents, feats = [], []
+    for f in profile.features:
+        k = points.get(f.id, 0) if isinstance(points, dict) else int(points)
+        if k <= 0:
+            continue
+        dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
+        dev = np.broadcast_to(dev, (n_parts, f.nparams))
+        t = jnp.linspace(margin, 1.0 - margin, k)
+
+        def surface(d, f=f, t=t):
+            q = f.point_at(t, d)
+            return q, f.outward_normal(q, d)
+
+        q, nrm = map(np.asarray, jax.jit(jax.vmap(surface))(jnp.asarray(dev)))
+        cents.append(q + rb[:, None, None] * nrm + rng.normal(0.0, noise_sd, size=q.shape))
+        feats += [f.id] * k
+    part_pts = np.concatenate(cents, axis=1)  # (P, n, 2), part frame
+    base = np.asarray(transform.as_array())
+    tr = np.tile(base, (n_parts, 1))
+    for j, name in enumerate(("x_centre", "z_offset", "scale_x", "scale_z")):
+        if name in errors:
+            tr[:, j] += errors[name]
+    machine = np.asarray(jax.jit(jax.vmap(part_to_machine))(jnp.asarray(part_pts), tr))
+    n = part_pts.shape[1]
+    width = len(str(n_parts))
+    names = np.array([f"p{i:0{width}d}" for i in range(n_parts)])
+    return {
+        "part": np.repeat(names, n),
+        "feature": np.tile(np.array(feats), n_parts),
+        "points": machine.reshape(-1, 2),
+        "errors": errors,
     }
 
 

@@ -195,7 +195,13 @@ def test_lockstep_ensembles_sample_each_parts_posterior_like_emcee(backend):
         sd = np.sqrt(np.diag(chols[k] @ chols[k].T))
         assert np.all(np.abs(post.mean - mus[k]) < 5 * post.mcse)
         np.testing.assert_allclose(post.sd, sd, rtol=0.06)
-        assert post.chains.shape == (1125, 4 * 32, 2) and post.n_ensembles == 4
+        # thin="auto": about tau / 2 of the 1125 kept steps
+        assert post.thin > 1 and post.chains.shape == (
+            len(range(post.thin - 1, 1125, post.thin)),
+            128,
+            2,
+        )
+        assert post.n_ensembles == 4
         assert np.all(post.rhat < 1.02)
     # same moves and acceptance rule as emcee: the same acceptance and mixing
     assert abs(posts[2].acceptance_fraction.mean() - ref.acceptance_fraction.mean()) < 0.03

@@ -131,9 +131,11 @@ def test_newcomb_posterior_of_sigma(newcomb):
 
 def test_posterior_diagnostics_and_repr(newcomb):
     _, _, post = newcomb
-    assert post.chains.shape == (2500, 4 * 32, 2)
-    assert post.samples.shape == (2500 * 128, 2)
-    assert post.log_prob.shape == (2500, 128)
+    s = post.chains.shape[0]
+    assert post.thin > 1 and s == len(range(post.thin - 1, 2500, post.thin))  # "auto" thinning
+    assert post.chains.shape == (s, 4 * 32, 2)
+    assert post.samples.shape == (s * 128, 2)
+    assert post.log_prob.shape == (s, 128)
     assert np.all(post.tau_reliable) and np.all(post.rhat < 1.01) and np.all(post.ess > 400)
     assert 0.5 < post.acceptance_fraction.mean() < 0.9  # stretch move on a 2-d target
     assert post.wall_time > 0 and post.ess_per_second > 0
@@ -151,15 +153,50 @@ def test_posterior_diagnostics_and_repr(newcomb):
 def test_posterior_to_arviz_and_netcdf(newcomb, tmp_path):
     _, _, post = newcomb
     idata = post.to_arviz()
-    assert idata.posterior["mu"].shape == (128, 2500)  # chain = walker, draw = step
+    s = post.chains.shape[0]
+    assert idata.posterior["mu"].shape == (4, 32 * s)  # chain = ensemble, walker-major draws
     assert idata.posterior.attrs["n_ensembles"] == 4
-    assert np.allclose(idata.posterior.attrs["rhat_split_across_ensembles"], post.rhat)
+    assert np.allclose(idata.posterior.attrs["rhat"], post.rhat)
     path = post.to_netcdf(tmp_path / "newcomb.nc")
     from piecs_bayes.fit._bayes import _import_arviz
 
     back = _import_arviz().from_netcdf(path)
-    assert np.array_equal(back.posterior["log_sigma"].values, post.chains[:, :, 1].T)
-    assert np.array_equal(back.sample_stats["lp"].values, post.log_prob.T)
+    ens = post.ensemble_chains  # (K, S, W, d)
+    assert np.array_equal(back.posterior["log_sigma"].values[1, :s], ens[1, :, 0, 1])
+    assert np.array_equal(back.posterior["log_sigma"].values[1, s : 2 * s], ens[1, :, 1, 1])
+    assert np.array_equal(
+        np.sort(back.sample_stats["lp"].values.ravel()), np.sort(post.log_prob.ravel())
+    )
+
+
+@pytest.mark.parametrize("sampler", ["emcee", "lockstep"])
+def test_arviz_computes_the_reported_rhat_and_ess_from_the_stored_chains(sampler, tmp_path):
+    """Parity: what a user gets from `az.rhat` / `az.ess` on posterior.nc is what
+    the package reports (and judges convergence by)."""
+    from piecs_bayes.fit import sample_posteriors
+    from piecs_bayes.fit._bayes import _import_arviz
+
+    az = _import_arviz()
+    kw = dict(names=("a", "b"), nwalkers=16, nsteps=1500, seed=4, progress=False)
+    x0 = np.array([0.3, -1.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        if sampler == "emcee":
+            post = sample_posterior(_toy2, x0, **kw)
+        else:
+            post = sample_posteriors(_toy2, x0[None], args=(np.zeros((1, 1)),), **kw)[0]
+    assert post.thin > 1  # "auto": about tau / 2
+    back = az.from_netcdf(post.to_netcdf(tmp_path / "p.nc"))
+    ess = az.ess(back, method="bulk")
+    rhat = az.rhat(back, method="rank")
+    for j, name in enumerate(post.names):
+        assert float(ess[name]) == pytest.approx(post.ess[j], rel=1e-9)
+        assert float(rhat[name]) == pytest.approx(post.rhat[j], rel=1e-12)
+
+
+def _toy2(theta, args):
+    # a correlated 2-D Gaussian
+    return -0.5 * (theta[0] ** 2 + (theta[1] - 0.8 * theta[0]) ** 2 / 0.36)
 
 
 def test_split_rhat_matches_arviz_across_ensembles(newcomb):
@@ -167,10 +204,8 @@ def test_split_rhat_matches_arviz_across_ensembles(newcomb):
     from piecs_bayes.fit._bayes import _import_arviz
 
     az = _import_arviz()
-    ens = post.ensemble_chains  # (K, S, W, d)
-    k, s = ens.shape[:2]
     for j in range(2):
-        x = ens[..., j].reshape(k, -1)  # one chain per ensemble, step-major
+        x = post.arviz_chains[..., j]  # one chain per ensemble
         ours = split_rhat(x)
         theirs = float(az.rhat(x, method="rank"))
         assert ours == pytest.approx(theirs, rel=1e-10)

@@ -370,7 +370,7 @@ def test_compensation_outputs_are_written_and_validated(demo, tmp_path):
     assert upd.z.error == pytest.approx(
         np.mean([xs["face_end"].mean, xs["shoulder"].mean]), abs=2e-3
     )
-    assert "G10 P1 U-0.0361" in (tmp_path / "tool_offsets_fanuc.ngc").read_text()
+    assert "G10 P1 U-0.0372" in (tmp_path / "tool_offsets_fanuc.ngc").read_text()
     assert any("diameters disagree" in n for n in out.notes)
     assert any("nose radius not updated" in n for n in out.notes)
 
@@ -381,7 +381,7 @@ def test_tool_offsets_with_current_values_nose_radius_and_block(demo, tmp_path):
     s1 = replace(study, offsets=MappingProxyType(cur))
     out = D.write_compensation_outputs(s1, fit, tmp_path / "a", gain=0.5)
     g10 = (tmp_path / "a" / "tool_offsets_linuxcnc.ngc").read_text()
-    assert "G10 L1 P3 X0.0873 Z-2.4892" in g10 and "G21 G7" in g10
+    assert "G10 L1 P3 X0.0862 Z-2.4893" in g10 and "G21 G7" in g10
     off, rot = fit["dia_24"].values
     assert out.errspec.table("x_radius").correction[0] == pytest.approx(
         -0.5 * off * math.cos(rot), abs=1e-15

@@ -16,6 +16,7 @@ from types import MappingProxyType
 
 import pytest
 from pypdf import PdfReader
+from scipy import stats
 
 from piecs_bayes.cli import main
 from piecs_bayes.export import report_files, report_html
@@ -111,8 +112,10 @@ def test_bundle_is_immutable_and_complete(demo_results):
     assert res.errspec is not None and res.offsets is not None
     assert set(res.unavailable) == {"capability"}  # one part only
     assert "1 part" in res.unavailable["capability"]
-    # the decisions' gains drive the path: face_end is not compensated on the demo part
-    assert res.gains["face_end"] == 0.0 and res.gains["dia_24"] == 1.0
+    # the decisions' gains drive the path: zero unless the verdict is "compensate"
+    for d in res.decisions.decisions:
+        assert (res.gains[d.feature] > 0.0) == (d.verdict == "compensate"), d.feature
+    assert res.gains["dia_24"] == 1.0
     assert 0.0 <= min(res.gains.values()) and max(res.gains.values()) <= 1.0
     roles = [f.role for f in res.inputs]
     assert roles == ["study", "probe", "program"]
@@ -120,8 +123,9 @@ def test_bundle_is_immutable_and_complete(demo_results):
     assert res.versions["piecs_bayes"] and res.versions["python"]
     rows = res.summary_rows()
     assert [r["feature"] for r in rows] == list(res.study.profile.ids)
-    for r in rows:  # U = 2u, Bayesian estimate beside the robust one
-        assert r["U_um"] == pytest.approx(2 * r["u_um"])
+    for r in rows:  # U = t(nu_eff) u at 95.45 % (k = 2 under the normal), Bayes beside
+        k = stats.t.ppf(0.5 + 0.9544997361036416 / 2, r["dof"])
+        assert 2.0 < k < 2.2 and r["U_um"] == pytest.approx(k * r["u_um"], rel=1e-9)
         assert abs(r["bayes_um"] - r["deviation_um"]) < 2 * r["U_um"]
     assert "face_end" in repr(res) and "<table>" in res._repr_html_()
 
@@ -137,8 +141,9 @@ def test_html_is_self_contained_with_every_section_and_figure(demo_report, demo_
             assert src.startswith("data:image/png;base64,")
             assert base64.b64decode(src.split(",", 1)[1])[:8] == PNG
     body = {sid: " ".join(t) for sid, t in p.text.items()}
-    assert "deviation ± U (µm, k=2)" in body["summary"]
-    assert "compensate" in body["summary"] and "do not compensate" in body["summary"]
+    assert "deviation ± U (µm, 95.45 %)" in body["summary"]
+    for d in demo_results.decisions.decisions:
+        assert d.verdict in body["summary"]
     assert "NOT converged" in body["summary"]  # 400 steps: said, not hidden
     assert "R-hat" in body["posterior"] and "ESS" in body["posterior"]
     assert "repeatability (%)" in body["budget"]

@@ -34,6 +34,13 @@ $[T_L + rU, T_U - rU]$; a value inside *conforms*, one outside
 $[T_L - rU, T_U + rU]$ *does not conform*, otherwise it is *ambiguous*; the conformance
 probability is $p_c = \\Phi((T_U - y)/u) - \\Phi((T_L - y)/u)$.
 
+**Degrees of freedom.** When $u$ comes with finite (effective) degrees of freedom
+$\\nu$ (an estimated probe sigma, Welch-Satterthwaite over the sources), the
+deviation's distribution is $y + u\\,t_\\nu$: the losses and $p_\\text{exceed}$ are
+taken over it (deterministic quantile draws), $p_c$ uses the $t_\\nu$ cdf and the
+coverage factor is $t_\\nu$ at the probability $k_\\text{cov}$ has under the normal
+(95.45 % for $k = 2$, JCGM 100 G.6).
+
 **Verdict**:
 
 1. `compensate` (with the Bayes gain) when the Bayes action adjusts (and, when
@@ -52,6 +59,7 @@ probability is $p_c = \\Phi((T_U - y)/u) - \\Phi((T_L - y)/u)$.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -226,13 +234,23 @@ def conformance(
     *,
     coverage_factor: float = 2.0,
     guard_band_factor: float = 1.0,
+    dof: float = math.inf,
 ) -> Conformance:
-    """ISO 14253-1 decision with guard bands $rU$, $U = k u$, and $p_c$ (see module doc)."""
+    """ISO 14253-1 decision with guard bands $rU$, $U = k u$, and $p_c$ (see module doc).
+
+    With finite `dof` the coverage factor is Student-t's at the normal coverage of
+    `coverage_factor` and $p_c$ uses the $t_\\nu$ cdf."""
     lo, hi = (float(t) for t in tolerance)
-    big_u = coverage_factor * u
+    if math.isfinite(dof):
+        p_cov = 2.0 * float(special.ndtr(coverage_factor)) - 1.0
+        big_u = float(special.stdtrit(dof, 0.5 + p_cov / 2.0)) * u
+    else:
+        big_u = coverage_factor * u
     g = guard_band_factor * big_u
     acc = (lo + g, hi - g)
-    if u > 0:
+    if u > 0 and math.isfinite(dof):
+        p_c = float(special.stdtr(dof, (hi - value) / u) - special.stdtr(dof, (lo - value) / u))
+    elif u > 0:
         p_c = float(special.ndtr((hi - value) / u) - special.ndtr((lo - value) / u))
     else:
         p_c = float(lo <= value <= hi)
@@ -296,6 +314,7 @@ class Decision:
     n_points: int | None
     more_points: int | None
     reasons: tuple[str, ...]
+    dof: float = math.inf
 
     def as_row(self) -> dict:
         """A flat dict for a verdict table (JSON/CSV)."""
@@ -307,6 +326,7 @@ class Decision:
             "u_correction_mm": self.u_correction,
             "estimate_mm": self.estimate,
             "u_estimate_mm": self.u_estimate,
+            "dof": self.dof if math.isfinite(self.dof) else None,
             "null_band_mm": self.null_band,
             "p_exceed_null_band": self.p_exceed,
             "p_conform_before": self.conformance_before.p_conform,
@@ -434,7 +454,7 @@ class _Core:
     justified: bool
 
 
-def _evaluate(m0, s0, samples, tol, st: DecisionSettings, k, band, max_corr, t) -> _Core:
+def _evaluate(m0, s0, samples, tol, st: DecisionSettings, k, band, max_corr, t, dof) -> _Core:
     post = _posterior(m0, s0, samples, st.prior_sd)
     lam = st.feedback_gain
     shrink = t if st.prior_sd is None else t + s0**2 / st.prior_sd**2
@@ -461,9 +481,13 @@ def _evaluate(m0, s0, samples, tol, st: DecisionSettings, k, band, max_corr, t) 
     bayes = ActionLoss("bayes", g_b, c_b, loss_b, abs(c_b) > max_corr)
     actions.append(bayes)
     kw = dict(coverage_factor=st.coverage_factor, guard_band_factor=st.guard_band_factor)
-    before = conformance(post.m, post.s, tol, **kw)
-    s_after = math.sqrt(post.s**2 + (st.adjustment_sd**2 if c_b != 0 else 0.0))
-    after = conformance(post.m + c_b, s_after, tol, **kw)
+    # a t-distributed estimate (finite dof, no prior): conformance on its scale s0
+    t_dist = math.isfinite(dof) and st.prior_sd is None
+    u_before, dof_before = (s0, dof) if t_dist else (post.s, math.inf)
+    before = conformance(post.m, u_before, tol, dof=dof_before, **kw)
+    s_after = math.sqrt(u_before**2 + (st.adjustment_sd**2 if c_b != 0 else 0.0))
+    dof_after = dof_before * (s_after / u_before) ** 4 if u_before > 0 else dof_before
+    after = conformance(post.m + c_b, s_after, tol, dof=dof_after, **kw)
     p_ex = _p_exceed(post, band)
     significant = p_ex >= st.p_significant
     require = st.require_significance
@@ -491,16 +515,16 @@ def _scaled(m0, s0, samples, u_sys, n, n_new):
     return s_new, m0 + (samples - m0) * (s_new / s0 if s0 > 0 else 1.0)
 
 
-def _more_points(m0, s0, samples, u_sys, n, tol, st, k, band, max_corr, t) -> int | None:
+def _more_points(m0, s0, samples, u_sys, n, tol, st, k, band, max_corr, t, dof) -> int | None:
     n_max = max(int(math.ceil(st.max_points_factor * n)), n + 1)
     cands = sorted({min(n_max, int(math.ceil(n * 1.08**j))) for j in range(1, 200)} - {n})
     prev = n
     for n_new in cands:
         s_new, smp = _scaled(m0, s0, samples, u_sys, n, n_new)
-        if _clear(_evaluate(m0, s_new, smp, tol, st, k, band, max_corr, t)) is not None:
+        if _clear(_evaluate(m0, s_new, smp, tol, st, k, band, max_corr, t, dof)) is not None:
             for n_try in range(prev + 1, n_new):  # the smallest decisive count
                 s_try, smp = _scaled(m0, s0, samples, u_sys, n, n_try)
-                core = _evaluate(m0, s_try, smp, tol, st, k, band, max_corr, t)
+                core = _evaluate(m0, s_try, smp, tol, st, k, band, max_corr, t, dof)
                 if _clear(core) is not None:
                     return n_try - n
             return n_new - n
@@ -521,6 +545,7 @@ def decide(
     u_systematic: float = 0.0,
     run_index: int = 1,
     feature: str | None = None,
+    dof: float = math.inf,
 ) -> Decision:
     """Decide whether to compensate one feature.
 
@@ -534,6 +559,8 @@ def decide(
     - `u_systematic`: part of `sd` that more points do not reduce (mm).
     - `run_index`: $t$ of Grubbs' harmonic rule (1 for a first setup adjustment).
     - `feature`: id carried into the result and error messages.
+    - `dof`: (effective) degrees of freedom of `sd` (`inf`: normal). Finite: the
+      deviation is `mean + sd * t_dof` (see the module doc); not with `samples`.
 
     **Returns:** a [`Decision`][] with the verdict, the gain and correction, every
     action's expected loss, significance, conformance before and after, and reasons.
@@ -568,6 +595,13 @@ def decide(
             feature=feature,
             value=u_systematic,
         )
+    if isinstance(dof, bool) or not isinstance(dof, int | float) or not dof > 0:
+        raise InputError(f"dof must be a number > 0 (or inf), got {dof!r}", feature=feature)
+    dof = float(dof)
+    if math.isfinite(dof):
+        if smp is not None:
+            raise InputError("dof applies to mean and sd, not to samples", feature=feature)
+        smp = m0 + s0 * _T_QUANTILES(dof)
     if isinstance(run_index, bool) or not isinstance(run_index, int) or run_index < 1:
         raise InputError(f"run_index must be an integer >= 1, got {run_index!r}", value=run_index)
     if n_points is not None and (
@@ -581,11 +615,12 @@ def decide(
     if k == 0.0:
         k = 1.0 / (width / 2) ** 2  # no costs given at all: fall back to unit Taguchi loss
     max_corr = width if st.max_correction is None else st.max_correction
-    core = _evaluate(m0, s0, smp, (lo, hi), st, k, band, max_corr, run_index)
+    core = _evaluate(m0, s0, smp, (lo, hi), st, k, band, max_corr, run_index, dof)
     b = core.bayes
 
     reasons = [
         f"estimate {m0:+.4g} mm, u = {s0:.2g} mm"
+        + (f" ({dof:.0f} effective degrees of freedom)" if math.isfinite(dof) else "")
         + (
             f" (posterior with prior sd {st.prior_sd:g}: {core.post.m:+.4g} ± {core.post.s:.2g})"
             if st.prior_sd is not None
@@ -611,8 +646,9 @@ def decide(
     if verdict is None:
         if n_points is not None:
             more = _more_points(
-                m0, s0, smp, u_systematic, n_points, (lo, hi), st, k, band, max_corr, run_index
-            )
+                m0, s0, smp, u_systematic, n_points, (lo, hi), st, k, band, max_corr, run_index,
+                dof,
+            )  # fmt: skip
         target = core.after if core.justified else core.before
         lo_a, hi_a = target.acceptance
         if n_points is None:
@@ -684,7 +720,19 @@ def decide(
         n_points=n_points,
         more_points=more,
         reasons=tuple(reasons),
+        dof=dof,
     )
+
+
+_N_T = 2000
+
+
+@functools.lru_cache(maxsize=256)
+def _T_QUANTILES(dof: float) -> np.ndarray:  # noqa: N802 - a cached constant table
+    """Stratified standard t quantiles: deterministic draws of $t_\\nu$."""
+    q = special.stdtrit(dof, (np.arange(_N_T) + 0.5) / _N_T)
+    q.flags.writeable = False
+    return q
 
 
 def _tolerance(tolerance, feature) -> tuple[float, float]:

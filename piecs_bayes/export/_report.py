@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..fit._sigma import coverage_factor
+
 __all__ = [
     "SECTIONS",
     "report_html",
@@ -139,6 +141,7 @@ def summary_rows(res) -> list[dict]:
             "deviation_um": math.nan,
             "u_um": math.nan,
             "U_um": math.nan,
+            "dof": math.nan,
             "bayes_um": math.nan,
             "bayes_U_um": math.nan,
             "verdict": "not measured" if f.id not in fit.fits else "–",
@@ -153,7 +156,8 @@ def summary_rows(res) -> list[dict]:
                 at=c.at if c is not None else "",
                 deviation_um=d.estimate * 1e3,
                 u_um=d.u_estimate * 1e3,
-                U_um=2 * d.u_estimate * 1e3,
+                U_um=d.conformance_before.expanded * 1e3,
+                dof=d.dof,
                 verdict=d.verdict + (f" (+{d.more_points} points)" if d.more_points else ""),
                 gain=d.gain,
                 correction_um=d.correction * 1e3,
@@ -162,7 +166,10 @@ def summary_rows(res) -> list[dict]:
             )
         elif f.id in chars:
             c = chars[f.id]
-            row.update(at=c.at, deviation_um=c.mean * 1e3, u_um=c.sd * 1e3, U_um=2 * c.sd * 1e3)
+            k = coverage_factor(c.dof, K2_COVERAGE)
+            row.update(
+                at=c.at, deviation_um=c.mean * 1e3, u_um=c.sd * 1e3, U_um=k * c.sd * 1e3, dof=c.dof
+            )
         bc = (res.bayes_characteristics or {}).get(f.id)
         if bc is not None:
             row["bayes_um"], row["bayes_U_um"] = bc[0] * 1e3, 2 * bc[1] * 1e3
@@ -197,7 +204,7 @@ def _summary_table(res) -> _Table:
         "nominal (X as Ø, mm)",
         "tolerance (µm)",
         "at",
-        "deviation ± U (µm, k=2)",
+        "deviation ± U (µm, 95.45 %)",
     ]
     if bayes:
         headers.append("Bayes ± U (µm, k=2)")
@@ -347,6 +354,18 @@ def _profile_section(res) -> list:
     return blocks
 
 
+#: coverage probability of a k = 2 interval under the normal (JCGM 100 G.6)
+K2_COVERAGE = 0.9544997361036416
+
+
+def _sigma_cell(fit) -> str:
+    s = getattr(fit, "sigma", None)
+    if s is None:
+        return "–"
+    dof = "∞" if math.isinf(s.dof) else f"{s.dof:.0f}"
+    return f"{s.value * 1e3:.2f} ({s.source}, {dof})"
+
+
 def _residuals_section(res) -> list:
     from . import _figures as F
 
@@ -359,6 +378,8 @@ def _residuals_section(res) -> list:
                 str(len(f.outliers)),
                 ", ".join(str(int(f.lines[i])) for i in f.outliers) or "–",
                 _f(f.residual_sd, ".2f"),
+                str(f.residual_dof),
+                _sigma_cell(res.fit),
                 f.result.status.name if hasattr(f.result, "status") else "",
             ]
         )
@@ -370,8 +391,24 @@ def _residuals_section(res) -> list:
             "feature; red crosses are outliers with their probe-file line.",
         ),
         _Table(
-            ["feature", "points", "outliers", "outlier lines", "residual sd (µm)", "solver"],
+            [
+                "feature",
+                "points",
+                "outliers",
+                "outlier lines",
+                "residual sd (µm)",
+                "residual dof",
+                "sigma used (µm, source, dof)",
+                "solver",
+            ],
             rows,
+        ),
+        _Para(
+            "Every standard uncertainty uses the probe sigma in the 'sigma used' column, "
+            "not a feature's own residual sd (a few points say little about sigma): "
+            + (res.fit.sigma.describe() if res.fit.sigma is not None else "not recorded")
+            + ". Expanded uncertainties use Student-t coverage factors with "
+            "Welch-Satterthwaite effective degrees of freedom (docs/uncertainty.md)."
         ),
     ]
 

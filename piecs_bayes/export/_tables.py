@@ -29,7 +29,19 @@ def to_csv(rows: list[dict], columns: list[str] | None = None) -> str:
 
 
 def fit_json(fit, *, study=None) -> str:
-    """Per-feature fitted deviations with standard uncertainties, as JSON."""
+    """Per-feature fitted deviations with standard uncertainties, as JSON.
+
+    ``probe_sigma`` (and, per feature, ``sigma``) say which probe sigma scales the
+    standard uncertainties, where it came from (``declared``, ``pooled``,
+    ``pooled+declared``, ``prior``) and its degrees of freedom (``null``: known);
+    ``residual_sd``/``residual_dof`` are each feature's own residuals, a diagnostic."""
+    sigma = None if getattr(fit, "sigma", None) is None else fit.sigma.as_dict()
+    features = []
+    for f in fit:
+        d = f.as_dict()
+        if sigma is not None:
+            d["sigma"] = {k: sigma[k] for k in ("value_mm", "source", "dof")}
+        features.append(d)
     doc = {
         "schema": "piecs_bayes.fit",
         "version": SCHEMA_VERSION,
@@ -37,7 +49,8 @@ def fit_json(fit, *, study=None) -> str:
         "part": fit.part,
         "method": fit.method,
         "units": {"length": "mm", "angle": "rad", "x": "radius"},
-        "features": [f.as_dict() for f in fit],
+        "probe_sigma": sigma,
+        "features": features,
         "unmeasured": list(fit.unmeasured),
     }
     return json.dumps(doc, indent=2) + "\n"

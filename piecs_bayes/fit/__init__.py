@@ -28,8 +28,13 @@ from ._priors import HalfNormal as HalfNormal
 from ._priors import LogNormal as LogNormal
 from ._priors import Normal as Normal
 from ._priors import Prior as Prior
+from ._priors import ScaledInvChi2 as ScaledInvChi2
 from ._priors import StudentT as StudentT
 from ._priors import Uniform as Uniform
 from ._priors import prior_from_spec as prior_from_spec
 from ._profile_fit import ProfileFit as ProfileFit
 from ._profile_fit import fit_profile as fit_profile
+from ._sigma import ProbeSigma as ProbeSigma
+from ._sigma import coverage_factor as coverage_factor
+from ._sigma import effective_dof as effective_dof
+from ._sigma import probe_sigma as probe_sigma

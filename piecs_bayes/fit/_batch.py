@@ -64,7 +64,8 @@ from ._least_squares import (
     _ravel,
     solve_arrays,
 )
-from ._profile_fit import ProfileFit
+from ._profile_fit import ProfileFit, scale_fits
+from ._sigma import DECLARED_DOF, probe_sigma, sigma_arrays
 
 __all__ = ["BatchFit", "fit_profiles"]
 
@@ -151,6 +152,11 @@ class BatchFit:
     order: np.ndarray = field(repr=False)
     ball_radius: float = 1.0
     file: str | None = None
+    #: per part: residual sum of squares and dof pooled over its features (inliers)
+    pooled_ss: np.ndarray | None = field(default=None, repr=False)
+    pooled_dof: np.ndarray | None = field(default=None, repr=False)
+    #: the probe-sigma rule: (declared, declared_dof, known) - see `fit._sigma`
+    sigma_rule: tuple = (None, DECLARED_DOF, False)
     _index: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -165,6 +171,34 @@ class BatchFit:
                 if rows.size:
                     self._index.setdefault(fid, []).append((g_i, rows))
         object.__setattr__(self, "_where", where)
+        if self.pooled_ss is None:
+            object.__setattr__(self, "pooled_ss", np.zeros(len(self.parts)))
+            object.__setattr__(self, "pooled_dof", np.zeros(len(self.parts), dtype=int))
+        declared, declared_dof, known = self.sigma_rule
+        value, nu = sigma_arrays(
+            self.pooled_ss, self.pooled_dof, declared=declared, declared_dof=declared_dof,
+            known=known,
+        )  # fmt: skip
+        object.__setattr__(self, "_sigma", (value, nu))
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """`(P,)` probe sigma each part's covariances are scaled by (mm; NaN: none)."""
+        return self._sigma[0]
+
+    @property
+    def sigma_dof(self) -> np.ndarray:
+        """`(P,)` degrees of freedom of `sigma` (`inf` when declared known)."""
+        return self._sigma[1]
+
+    def probe_sigma(self, part: str | int):
+        """The part's [`ProbeSigma`][piecs_bayes.fit.ProbeSigma] (what `fit_profile` reports)."""
+        i = self._part_index(part)
+        declared, declared_dof, known = self.sigma_rule
+        return probe_sigma(
+            self.pooled_ss[i], int(self.pooled_dof[i]), declared=declared,
+            declared_dof=declared_dof, known=known, what=f"part {self.parts[i]!r}",
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ arrays
     def __len__(self) -> int:
@@ -204,6 +238,7 @@ class BatchFit:
         cov_free = self._scatter(fid, "covariance", np.nan, (p, p))
         out = np.zeros((len(self.parts), f.nparams, f.nparams))
         out[np.ix_(np.arange(len(self.parts)), free, free)] = cov_free
+        out *= (self.sigma**2)[:, None, None]  # unit covariances -> the part's sigma
         bad = self.covariance_code(fid) != _COV_OK
         out[bad] = np.nan
         return out
@@ -365,12 +400,14 @@ class BatchFit:
                 result=res,
                 fixed=tuple(self.fix.get(f.id, ())),
             )
+        ps = self.probe_sigma(i)
         return ProfileFit(
             self.profile,
-            fits,
+            scale_fits(fits, ps.value),
             "lsq" if self.method == "lsq" else "robust",
             tuple(unmeasured),
             self.parts[i],
+            sigma=ps,
         )
 
     def rows(self) -> list[dict]:
@@ -380,6 +417,7 @@ class BatchFit:
             f = self.profile[fid]
             v, se, st = self.values(fid), self.std_errors(fid), self.status(fid)
             n, no, sd = self.n_points(fid), self.n_outliers(fid), self.residual_sd(fid)
+            sig, sig_dof = self.sigma, self.sigma_dof
             for i, part in enumerate(self.parts):
                 if st[i] < 0:
                     continue
@@ -394,6 +432,8 @@ class BatchFit:
                             "n_points": int(n[i]),
                             "n_outliers": int(no[i]),
                             "residual_sd": float(sd[i]),
+                            "sigma": float(sig[i]),
+                            "sigma_dof": float(sig_dof[i]),
                             "status": Status(int(st[i])).name,
                             "method": self.method,
                         }
@@ -476,6 +516,8 @@ def fit_profiles(
     loss: str = "huber",
     scale: float | None = None,
     sigma: float | None = None,
+    declared: float | None = None,
+    declared_dof: float = DECLARED_DOF,
     fix: dict | None = None,
     lines=None,
     min_points: dict | None = None,
@@ -495,8 +537,9 @@ def fit_profiles(
     - `part_ids`, `feature_ids`: `(n,)` part and feature of each point; parts keep
       the order of their first point (production order).
     - `centres`: `(n, 2)` ball centres in the part frame (mm, radius X).
-    - `ball_radius`, `method` (`"lsq"`/`"robust"`), `loss`, `scale`, `sigma`, `fix`,
-      `lines`, `min_points`, `file`: as in [`fit_profile`][], for every part.
+    - `ball_radius`, `method` (`"lsq"`/`"robust"`), `loss`, `scale`, `sigma`,
+      `declared`, `declared_dof`, `fix`, `lines`, `min_points`, `file`: as in
+      [`fit_profile`][], for every part (the probe sigma is pooled per part).
     - `solver`: `"auto"` (default): the lean batch kernel (`_batch_kernel`: the
       same staged objective and result statistics, Newton steps in closed form),
       then the engine's Levenberg-Marquardt for any problem it did not solve, so a
@@ -592,7 +635,7 @@ def fit_profiles(
 
     rb = jnp.asarray(float(ball_radius))
     s_arr = jnp.asarray(np.nan if scale is None else float(scale))
-    sig_arr = jnp.asarray(np.nan if sigma is None else float(sigma))
+    sig_arr = jnp.asarray(1.0)  # unit covariances; each part's sigma scales them
     results = [dict() for _ in specs]
     pending: list = []
 
@@ -654,9 +697,13 @@ def fit_profiles(
                 arrays=arrays,
             )
         )
+    ss, dof = _pooled(groups, n_parts)
     return BatchFit(
         profile=profile,
         parts=parts,
+        pooled_ss=ss,
+        pooled_dof=dof,
+        sigma_rule=(declared if sigma is None else float(sigma), declared_dof, sigma is not None),
         method="lsq" if method == "lsq" else f"robust/{loss}",
         loss=loss_used,
         fix=fix,
@@ -667,6 +714,18 @@ def fit_profiles(
         ball_radius=float(ball_radius),
         file=file,
     )
+
+
+def _pooled(groups, n_parts: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per part: residual sum of squares and dof of its inliers, over its features."""
+    ss, dof = np.zeros(n_parts), np.zeros(n_parts, dtype=int)
+    for g in groups:
+        valid = np.arange(g.n_pad)[None, :] < g.count[:, None]
+        inl = valid & ~np.asarray(g.arrays["outlier"], dtype=bool)
+        r = np.where(inl, np.asarray(g.arrays["residuals"]), 0.0)
+        np.add.at(ss, g.part, np.sum(r * r, axis=1))
+        np.add.at(dof, g.part, inl.sum(axis=1) - len(g.free))
+    return ss, dof
 
 
 def _solve_rows(solve, rows, pp, ff, counts, starts, order, centres, geoms, n_pad, bsize,

@@ -13,11 +13,11 @@ evaluates all the proposals. Each ensemble is therefore exactly an emcee
 ensemble (same moves, same acceptance rule; only the random numbers differ),
 and the parts are independent Markov chains.
 
-Moves: `"stretch"` (Goodman & Weare, `a = 2`, emcee's `StretchMove`) or
-`"de"`: 80 % differential evolution (emcee's `DEMove`, $\gamma_0 = 2.38/\sqrt{2d}$,
-$\sigma_\gamma = 10^{-5}$) and 20 % stretch (emcee's default `"de"` mixture in
-[`fit_profile_bayes`][] uses a snooker move for the 20 %; both mixtures are valid,
-the snooker is not implemented here). The move is drawn per ensemble and step.
+Moves: the package's one vocabulary (`piecs_bayes.fit._moves`): `"stretch"`
+(Goodman & Weare, `a = 2`, emcee's `StretchMove`) or `"de"`: 80 % differential
+evolution (emcee's `DEMove`, $\gamma_0 = 2.38/\sqrt{2d}$, $\sigma_\gamma = 10^{-5}$)
+and 20 % stretch, the same mixture [`sample_posterior`][] hands to emcee. The
+move is drawn per ensemble and step.
 Validated against emcee on the same posteriors (`tests/test_batch.py`,
 `benchmarks/bench_scale.py`).
 
@@ -28,7 +28,6 @@ part's ensembles, $\tau$, ESS and the same convergence verdict.
 from __future__ import annotations
 
 import functools
-import math
 import time
 import warnings
 from collections.abc import Callable
@@ -48,11 +47,11 @@ from ._bayes import (
     _problems,
     _sqrt_psd,
     _start_cov,
+    check_thin,
 )
+from ._moves import DE_FRACTION, DE_SIGMA, STRETCH_A, check_moves, de_gamma0
 
 __all__ = ["fit_profiles_bayes", "sample_posteriors"]
-
-_DE_FRACTION = 0.8
 
 
 @functools.lru_cache(maxsize=64)
@@ -80,7 +79,7 @@ def _half_step(rng, coords, lp, s_idx, c_idx, moves, ndim, lp_fn):
     s = coords[rows, s_idx]  # (E, h, d)
     c = coords[rows, c_idx]
     # stretch: q = c_j + z (s - c_j), log factor (d - 1) log z
-    a = 2.0
+    a = STRETCH_A
     z = ((a - 1.0) * rng.random((e, h)) + 1.0) ** 2 / a
     j = rng.integers(0, h, size=(e, h))
     cj = c[rows, j]
@@ -91,9 +90,9 @@ def _half_step(rng, coords, lp, s_idx, c_idx, moves, ndim, lp_fn):
         k = rng.integers(0, h, size=(e, h))
         l_ = rng.integers(0, h - 1, size=(e, h))
         l_ = l_ + (l_ >= k)
-        gamma = (2.38 / math.sqrt(2.0 * ndim)) * (1.0 + 1e-5 * rng.standard_normal((e, h, 1)))
+        gamma = de_gamma0(ndim) * (1.0 + DE_SIGMA * rng.standard_normal((e, h, 1)))
         q_de = s + gamma * (c[rows, l_] - c[rows, k])
-        use_de = rng.random(e) < _DE_FRACTION  # one move per ensemble and step
+        use_de = rng.random(e) < DE_FRACTION  # one move per ensemble and step
         q = np.where(use_de[:, None, None], q_de, q_st)
         f = np.where(use_de[:, None], 0.0, f_st)
     else:
@@ -124,7 +123,7 @@ def _jax_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: str
     def half(key, coords, lp, s_idx, c_idx, args):
         ks = jax.random.split(key, 7)
         s, c = coords[rows, s_idx], coords[rows, c_idx]
-        z = ((2.0 - 1.0) * jax.random.uniform(ks[0], (n_e, h)) + 1.0) ** 2 / 2.0
+        z = ((STRETCH_A - 1.0) * jax.random.uniform(ks[0], (n_e, h)) + 1.0) ** 2 / STRETCH_A
         j = jax.random.randint(ks[1], (n_e, h), 0, h)
         cj = c[rows, j]
         q = cj - (cj - s) * z[..., None]
@@ -133,10 +132,9 @@ def _jax_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: str
             k = jax.random.randint(ks[2], (n_e, h), 0, h)
             l_ = jax.random.randint(ks[3], (n_e, h), 0, h - 1)
             l_ = l_ + (l_ >= k)
-            g0 = 2.38 / math.sqrt(2.0 * ndim)
-            gamma = g0 * (1.0 + 1e-5 * jax.random.normal(ks[4], (n_e, h, 1)))
+            gamma = de_gamma0(ndim) * (1.0 + DE_SIGMA * jax.random.normal(ks[4], (n_e, h, 1)))
             q_de = s + gamma * (c[rows, l_] - c[rows, k])
-            use_de = jax.random.uniform(ks[5], (n_e,)) < _DE_FRACTION
+            use_de = jax.random.uniform(ks[5], (n_e,)) < DE_FRACTION
             q = jnp.where(use_de[:, None, None], q_de, q)
             f = jnp.where(use_de[:, None], 0.0, f)
         lp_new = lp_fn(q, args)
@@ -213,7 +211,7 @@ def sample_posteriors(
     nwalkers: int | None = None,
     nsteps: int = 2000,
     burn: int | None = None,
-    thin: int = 1,
+    thin: int | str = "auto",
     seed: int = 0,
     progress: bool = True,
     n_ensembles: int = 4,
@@ -264,15 +262,15 @@ def sample_posteriors(
             )
     if on_fail not in ("warn", "raise", "ignore"):
         raise InputError(f"on_fail: got {on_fail!r}, expected 'warn', 'raise' or 'ignore'")
-    moves = "stretch" if moves is None else moves
-    if moves not in ("stretch", "de"):
-        raise InputError(f"moves: got {moves!r}, expected None, 'stretch' or 'de'")
+    moves = check_moves(moves)
     if nwalkers is None:
         nwalkers = max(64, 4 * ndim)
         nwalkers += nwalkers % 2
     if nwalkers < 2 * ndim or nwalkers % 2:
         raise InputError(f"nwalkers: got {nwalkers}, expected an even number >= 2 * dim")
     burn = nsteps // 4 if burn is None else int(burn)
+    thin_spec = check_thin(thin)
+    thin = 1 if thin_spec == "auto" else thin_spec
     if not (0 <= burn < nsteps) or thin < 1 or (nsteps - burn) // thin < 8:
         raise InputError(
             f"nsteps={nsteps}, burn={burn}, thin={thin}: expected 0 <= burn < nsteps, thin >= 1 "
@@ -360,8 +358,13 @@ def sample_posteriors(
     out, failed = [], []
     for p in range(n_parts):
         sl = slice(p * k_ens, (p + 1) * k_ens)
-        kp = kept[:, sl].transpose(1, 0, 2, 3)  # (K, S, W, d)
-        tau, tau_max, reliable, ess, rhat = _diagnose(kp, thin, tau_factor)
+        kp, lp_p, thin_p, tau, tau_max, reliable, ess, rhat = _diagnose(
+            kept[:, sl].transpose(1, 0, 2, 3),
+            kept_lp[:, sl].transpose(1, 0, 2),
+            thin,
+            thin_spec,
+            tau_factor,
+        )  # kp: (K, S, W, d)
         # a chain too short (or stuck) for an estimate: tau unknown, never trusted
         unknown = ~np.isfinite(tau_max)
         tau = np.where(np.isfinite(tau), tau, float(nsteps))
@@ -370,7 +373,7 @@ def sample_posteriors(
         ess = np.where(np.isfinite(ess), ess, 0.0)
         problems = _problems(
             names, tau_max, reliable, ess, rhat, kp.shape[1], nsteps=nsteps, burn=burn,
-            thin=thin, nwalkers=w, rhat_max=rhat_max, min_ess=min_ess, tau_factor=tau_factor,
+            thin=thin_p, nwalkers=w, rhat_max=rhat_max, min_ess=min_ess, tau_factor=tau_factor,
             n_ensembles=k_ens,
         )  # fmt: skip
         s = kp.shape[1]
@@ -378,7 +381,7 @@ def sample_posteriors(
             Posterior(
                 names=names,
                 chains=_frozen(kp.transpose(1, 0, 2, 3).reshape(s, k_ens * w, ndim)),
-                log_prob=_frozen(kept_lp[:, sl].reshape(s, k_ens * w)),
+                log_prob=_frozen(lp_p.transpose(1, 0, 2).reshape(s, k_ens * w)),
                 acceptance_fraction=_frozen((n_acc[sl] / steps_run).reshape(-1)),
                 tau=_frozen(tau),
                 tau_reliable=_frozen(reliable),
@@ -390,7 +393,7 @@ def sample_posteriors(
                 nwalkers=w,
                 nsteps=nsteps,
                 burn=burn,
-                thin=thin,
+                thin=thin_p,
                 wall_time=wall / n_parts,
                 criteria={"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor},
             )

@@ -45,6 +45,8 @@ import jax.scipy.special as jsp
 import numpy as np
 
 from ..errors import AnalysisError, InputError
+from ._diagnostics import arviz_layout, ess_and_rhat, split_rhat
+from ._moves import check_moves, emcee_moves
 
 __all__ = [
     "ConvergenceError",
@@ -114,57 +116,53 @@ def student_t_loglik(residuals, scale, nu):
 # --------------------------------------------------------------------------- diagnostics
 
 
-def _rank_normalise(x: np.ndarray) -> np.ndarray:
-    from scipy import stats  # lazily: scipy.stats costs ~0.5 s of import time
-
-    r = stats.rankdata(x, axis=None).reshape(x.shape)
-    return stats.norm.ppf((r - 0.375) / (x.size + 0.25))
-
-
-def _rhat_basic(x: np.ndarray) -> float:
-    _, n = x.shape
-    w = np.mean(np.var(x, axis=1, ddof=1))
-    b = n * np.var(np.mean(x, axis=1), ddof=1)
-    return float(np.sqrt(((n - 1) / n * w + b / n) / w)) if w > 0 else math.nan
-
-
-def split_rhat(chains) -> float:
-    """Rank-normalised split $\\hat R$ (Vehtari et al. 2021) of `chains`, shape `(m, n)`.
-
-    Each of the `m` chains is split into its first and last `n // 2` draws; the
-    result is the larger of the bulk $\\hat R$ (on normal scores of the pooled
-    ranks) and the tail $\\hat R$ (on normal scores of $|x - \\mathrm{median}|$).
-    The chains must be independent of each other: for emcee, pass one row per
-    *ensemble*, never one per walker. Same value as `arviz.rhat(..., method="rank")`.
-    """
-    x = np.asarray(chains, dtype=float)
-    if x.ndim != 2 or x.shape[1] < 4:
-        raise InputError(f"split_rhat: got shape {x.shape}, expected (chains, draws >= 4)")
-    half = x.shape[1] // 2
-    x = np.concatenate([x[:, :half], x[:, -half:]], axis=0)
-    bulk = _rhat_basic(_rank_normalise(x))
-    tail = _rhat_basic(_rank_normalise(np.abs(x - np.median(x))))
-    return max(bulk, tail)
-
-
-def _diagnose(kept: np.ndarray, thin: int, tau_factor: float):
-    """`kept`: (K, S, W, d) -> tau (orig. steps), reliable, ess, rhat per parameter."""
-    k, s, w, d = kept.shape
+def _taus(kept: np.ndarray) -> np.ndarray:
+    """emcee's integrated autocorrelation time per ensemble and parameter, `(K, d)`,
+    in kept steps (walker-averaged autocorrelation, Sokal's window `c=5`)."""
     import emcee  # lazily: emcee imports scipy.stats (~0.5 s)
 
+    k = kept.shape[0]
     taus = np.stack(
         [emcee.autocorr.integrated_time(kept[i], c=5, tol=0, quiet=True) for i in range(k)]
-    )  # (K, d), in kept (thinned) steps
-    taus = np.maximum(taus, 1e-12)
+    )
+    return np.maximum(taus, 1e-12)
+
+
+def check_thin(thin) -> int | str:
+    """`thin`: a positive int, or ``"auto"`` (about half the smallest tau)."""
+    if thin == "auto":
+        return thin
+    if isinstance(thin, bool) or not isinstance(thin, int | np.integer) or thin < 1:
+        raise InputError(f"thin: got {thin!r}, expected an integer >= 1 or 'auto'", value=thin)
+    return int(thin)
+
+
+def _diagnose(kept: np.ndarray, lps: np.ndarray, run_thin: int, thin, tau_factor: float):
+    """Thin and diagnose the kept draws of one run.
+
+    `kept`: `(K, S, W, d)` draws (every `run_thin`-th step after burn-in), `lps`:
+    `(K, S, W)`; `thin`: ``"auto"`` thins them further to about half the smallest
+    autocorrelation time (nearly no effective samples lost, a tenth to a
+    fiftieth of the draws to store), an int keeps them. Returns the thinned
+    draws and log posteriors, the total thinning, tau (original steps; mean and
+    max over ensembles, estimated before thinning), reliable, ESS and R-hat per
+    parameter, the last two as ArviZ computes them on the stored draws
+    (`_diagnostics.arviz_layout`).
+    """
+    k, s, w, d = kept.shape
+    taus = _taus(kept)
     reliable = s >= tau_factor * taus.max(axis=0)
-    ess = np.minimum(np.sum(s * w / taus, axis=0), k * s * w)
-    h = s // 2
-    rhat = np.empty(d)
+    extra = 1
+    if thin == "auto" and np.all(np.isfinite(taus)):
+        extra = max(1, min(int(np.min(taus) // 2), s // 8))
+    kept, lps = kept[:, extra - 1 :: extra], lps[:, extra - 1 :: extra]
+    chains = arviz_layout(kept)  # (K, W*S', d)
+    ess, rhat = np.empty(d), np.empty(d)
     for j in range(d):
-        first = kept[:, :h, :, j].reshape(k, -1)
-        last = kept[:, s - h :, :, j].reshape(k, -1)
-        rhat[j] = split_rhat(np.concatenate([first, last], axis=1))
-    return taus.mean(axis=0) * thin, taus.max(axis=0) * thin, reliable, ess, rhat
+        ess[j], rhat[j] = ess_and_rhat(chains[:, :, j])
+    total = run_thin * extra
+    tau = taus.mean(axis=0) * run_thin
+    return kept, lps, total, tau, taus.max(axis=0) * run_thin, reliable, ess, rhat
 
 
 # --------------------------------------------------------------------------- result
@@ -290,21 +288,34 @@ class Posterior:
         tail = "".join(f"\n  ! {p}" for p in self.problems)
         return head + "\n" + self.summary() + tail
 
-    def to_arviz(self):
-        """ArviZ `InferenceData` (arviz 0.2x).
+    @property
+    def arviz_chains(self) -> np.ndarray:
+        """Draws as ArviZ chains, `(n_ensembles, nwalkers * steps, dim)`: one chain
+        per independent ensemble, its walkers' trajectories one after the other
+        (see `piecs_bayes.fit._diagnostics`). `ess` and `rhat` are ArviZ's
+        numbers on exactly these chains."""
+        return arviz_layout(self.ensemble_chains)
 
-        The posterior group has one ArviZ *chain* per emcee walker (as
-        `arviz.from_emcee` does) and `draw` = kept step; chain `c` belongs to
-        ensemble `c // nwalkers`. Because walkers of one ensemble are coupled,
-        ArviZ's own R-hat over these chains is not valid: the split R-hat across
-        ensembles, tau, ESS and the verdict are stored in the posterior's attrs.
-        `sample_stats.lp` holds the log posterior.
+    def to_arviz(self):
+        """ArviZ `InferenceData` (arviz 0.2x) whose own diagnostics are the package's.
+
+        The posterior group has one ArviZ *chain* per independent ensemble and
+        `draw` = the ensemble's walker trajectories one after the other
+        (`arviz_chains`); `arviz.ess(idata)` and `arviz.rhat(idata)` equal `ess`
+        and `rhat`. Walkers of one ensemble are coupled, so one chain per walker
+        (what `arviz.from_emcee` does) would make ArviZ's R-hat meaningless.
+        `sample_stats.lp` holds the log posterior; tau, the verdict and the run
+        settings are in the posterior's attrs.
         """
         az = _import_arviz()
-        post = {n: self.chains[:, :, j].T for j, n in enumerate(self.names)}
-        idata = az.from_dict(posterior=post, sample_stats={"lp": self.log_prob.T})
+        chains = self.arviz_chains
+        lp = arviz_layout(self._ensemble_log_prob())
+        post = {n: chains[:, :, j] for j, n in enumerate(self.names)}
+        idata = az.from_dict(posterior=post, sample_stats={"lp": lp})
         attrs = {
-            "sampler": f"emcee {_emcee().__version__} EnsembleSampler (vectorized JAX log_prob)",
+            "sampler": f"emcee {_emcee().__version__} moves (piecs_bayes ensembles)",
+            "chain": "one independent ensemble",
+            "draw": "walker-major: walker w's kept step s is draw w * steps + s",
             "n_ensembles": self.n_ensembles,
             "nwalkers_per_ensemble": self.nwalkers,
             "nsteps": self.nsteps,
@@ -312,15 +323,19 @@ class Posterior:
             "thin": self.thin,
             "converged": int(self.converged),
             "problems": "; ".join(self.problems),
-            "rhat_split_across_ensembles": np.asarray(self.rhat),
+            "rhat": np.asarray(self.rhat),
+            "ess_bulk": np.asarray(self.ess),
             "tau_steps": np.asarray(self.tau),
             "tau_reliable": np.asarray(self.tau_reliable, dtype=int),
-            "ess": np.asarray(self.ess),
             "wall_time_s": self.wall_time,
             "parameter_names": list(self.names),
         }
         idata.posterior.attrs.update(attrs)
         return idata
+
+    def _ensemble_log_prob(self) -> np.ndarray:
+        s = self.log_prob.shape[0]
+        return self.log_prob.reshape(s, self.n_ensembles, self.nwalkers).transpose(1, 0, 2)
 
     def to_netcdf(self, path) -> str:
         """Write `to_arviz()` to a netCDF file (h5netcdf); `arviz.from_netcdf` reads it."""
@@ -359,13 +374,16 @@ def _start_cov(log_prob, x0, args, cov0, ndim):
     if cov0 is None:
         h = np.asarray(_neg_hessian(log_prob)(jnp.asarray(x0), args))
         w, v = np.linalg.eigh(0.5 * (h + h.T)) if np.all(np.isfinite(h)) else (None, None)
-        if w is None or w.min() <= 0.0:
+        # a start off the mode (e.g. a sigma at its declared value, not at the data's)
+        # can have negative curvature along a few directions: the ball only needs a
+        # scale per direction, so those take |curvature| (a saddle-free Newton ball)
+        if w is None or np.min(np.abs(w)) <= 1e-12 * np.max(np.abs(w)):
             raise AnalysisError(
-                "cannot build the walkers' start ball: the Hessian of -log_prob at x0 is not "
-                "positive definite (x0 is not a mode, or a parameter is not identified); "
+                "cannot build the walkers' start ball: the Hessian of -log_prob at x0 is "
+                "singular (a parameter is not identified by the data and its prior); "
                 f"eigenvalues {w}; pass cov0, e.g. the least-squares covariance"
             )
-        return (v / w) @ v.T
+        return (v / np.abs(w)) @ v.T
     c = np.asarray(cov0, dtype=float)
     if c.ndim == 1:
         c = np.diag(c)
@@ -379,15 +397,6 @@ def _start_cov(log_prob, x0, args, cov0, ndim):
 def _sqrt_psd(c: np.ndarray) -> np.ndarray:
     w, v = np.linalg.eigh(c)
     return v * np.sqrt(np.clip(w, 0.0, None))
-
-
-def _moves(moves):
-    if moves is None or moves == "stretch":
-        return None
-    if moves == "de":
-        emcee = _emcee()
-        return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
-    raise InputError(f"moves: got {moves!r}, expected None, 'stretch' or 'de'")
 
 
 @functools.lru_cache(maxsize=64)
@@ -407,7 +416,7 @@ def sample_posterior(
     nwalkers: int | None = None,
     nsteps: int = 2000,
     burn: int | None = None,
-    thin: int = 1,
+    thin: int | str = "auto",
     seed: int = 0,
     progress: bool = True,
     n_ensembles: int = 4,
@@ -436,16 +445,19 @@ def sample_posterior(
       dominates), so more walkers buy effective samples per second: on Newcomb's
       2-parameter model, 64 walkers gave 2.8x the ESS/s of 32.
     - `nsteps`, `burn` (default `nsteps // 4`), `thin`: steps per ensemble,
-      steps discarded, thinning of the kept steps.
+      steps discarded, thinning of the kept steps: an int, or ``"auto"`` (the
+      default): about half the smallest autocorrelation time, estimated on the
+      unthinned draws (ESS and R-hat are then those of the stored draws).
     - `seed`: seeds every ensemble's start and random stream (reproducible).
     - `progress`: tqdm progress bar per ensemble (emcee's).
     - `n_ensembles`: independent ensembles, for $\\hat R$ (see module doc).
     - `on_fail`: `"warn"` (`ConvergenceWarning`), `"raise"` (`ConvergenceError`)
       or `"ignore"` when the run does not meet the criteria below.
-    - `moves`: ``None`` (emcee's stretch move) or ``"de"``: differential-evolution
-      moves (80 % DE, 20 % DE snooker), which mix about twice as fast per step
-      on correlated posteriors of ~20 dimensions (profile fits with nuisance
-      parameters: tau 65 against 150 steps).
+    - `moves`: ``None``/``"stretch"`` (emcee's stretch move) or ``"de"``: 80 %
+      differential evolution, 20 % stretch (the same mixture as the lockstep
+      sampler, see `piecs_bayes.fit._moves`; never emcee 3.1.6's biased DE
+      snooker move). DE mixes about twice as fast per step on correlated
+      posteriors of ~20 dimensions (profile fits with nuisance parameters).
     - `rhat_max`, `min_ess`, `tau_factor`: criteria: split $\\hat R \\le$ `rhat_max`,
       ESS $\\ge$ `min_ess`, kept chain $\\ge$ `tau_factor` $\\tau$ for every parameter.
 
@@ -464,6 +476,8 @@ def sample_posterior(
         nwalkers = max(64, 4 * ndim)
         nwalkers += nwalkers % 2
     burn = nsteps // 4 if burn is None else int(burn)
+    thin_spec = check_thin(thin)
+    thin = 1 if thin_spec == "auto" else thin_spec
     if nwalkers < 2 * ndim:
         raise InputError(f"nwalkers: got {nwalkers}, expected >= 2 * dim = {2 * ndim}")
     if not (0 <= burn < nsteps) or thin < 1 or (nsteps - burn) // thin < 8:
@@ -473,6 +487,7 @@ def sample_posterior(
         )
     if n_ensembles < 1:
         raise InputError(f"n_ensembles: got {n_ensembles}, expected >= 1")
+    moves = check_moves(moves)
 
     vec = _vectorised(log_prob)
 
@@ -504,7 +519,7 @@ def sample_posterior(
     t0 = time.perf_counter()
     for k, (p0, lp0, rs) in enumerate(starts):
         emcee = _emcee()
-        sampler = emcee.EnsembleSampler(nwalkers, ndim, f, vectorize=True, moves=_moves(moves))
+        sampler = emcee.EnsembleSampler(nwalkers, ndim, f, vectorize=True, moves=emcee_moves(moves))
         state = emcee.State(p0, log_prob=lp0, random_state=np.random.RandomState(rs).get_state())
         sampler.run_mcmc(
             state,
@@ -521,8 +536,9 @@ def sample_posterior(
         acc.append(sampler.acceptance_fraction)
     wall = time.perf_counter() - t0
 
-    kept = np.stack(kept)  # (K, S, W, d)
-    tau, tau_max, reliable, ess, rhat = _diagnose(kept, thin, tau_factor)
+    kept, lps, thin, tau, tau_max, reliable, ess, rhat = _diagnose(
+        np.stack(kept), np.stack(lps), thin, thin_spec, tau_factor
+    )  # kept: (K, S, W, d)
     problems = _problems(
         names, tau_max, reliable, ess, rhat, kept.shape[1], nsteps=nsteps, burn=burn, thin=thin,
         nwalkers=nwalkers, rhat_max=rhat_max, min_ess=min_ess, tau_factor=tau_factor,
@@ -532,7 +548,7 @@ def sample_posterior(
     post = Posterior(
         names=names,
         chains=_frozen(kept.transpose(1, 0, 2, 3).reshape(s, k * w, d)),
-        log_prob=_frozen(np.stack(lps, axis=1).reshape(s, k * w)),
+        log_prob=_frozen(lps.transpose(1, 0, 2).reshape(s, k * w)),
         acceptance_fraction=_frozen(np.concatenate(acc)),
         tau=_frozen(tau),
         tau_reliable=_frozen(reliable),

@@ -131,8 +131,21 @@ class FeatureFit:
         return len(self.points)
 
     @property
+    def residual_dof(self) -> int:
+        """Degrees of freedom of this feature's own residuals: inliers minus free parameters."""
+        return int(self.n - len(self.outliers) - (len(self.values) - len(self.fixed)))
+
+    @property
     def residual_sd(self) -> float:
-        return float(self.result.residual_sd)
+        """This feature's own residual sd, $\\sqrt{\\sum r_i^2/\\nu}$ over its inliers
+        (mm; NaN without degrees of freedom). A diagnostic only: the covariance of a
+        profile fit is scaled by the part's pooled probe sigma (`ProfileFit.sigma`)."""
+        dof = self.residual_dof
+        if dof <= 0:
+            return float("nan")
+        keep = np.ones(self.n, dtype=bool)
+        keep[np.asarray(self.outliers, dtype=int)] = False
+        return float(np.sqrt(np.sum(np.asarray(self.residuals)[keep] ** 2) / dof))
 
     @property
     def converged(self) -> bool:
@@ -150,7 +163,8 @@ class FeatureFit:
                 for name, v, s in zip(self.param_names, self.values, se, strict=True)
             },
             "fixed": list(self.fixed),
-            "residual_sd": self.residual_sd,
+            "residual_sd": self.residual_sd if np.isfinite(self.residual_sd) else None,
+            "residual_dof": self.residual_dof,
             "outlier_lines": [int(self.lines[i]) for i in self.outliers],
             "covariance": None if self.covariance is None else np.asarray(self.covariance).tolist(),
             "status": self.result.status.name,

@@ -19,6 +19,7 @@ from ..geometry import MachineTransform, Profile, machine_to_part
 from ._features import FeatureFit
 from ._least_squares import least_squares
 from ._profile_fit import ProfileFit
+from ._sigma import DECLARED_DOF, probe_sigma
 
 __all__ = ["fit_profile_joint", "TRANSFORM_PARAMS"]
 
@@ -59,6 +60,8 @@ def fit_profile_joint(
     loss: str = "linear",
     scale: float | None = None,
     sigma: float | None = None,
+    declared: float | None = None,
+    declared_dof: float = DECLARED_DOF,
     lines=None,
     part: str | None = None,
 ) -> ProfileFit:
@@ -71,7 +74,10 @@ def fit_profile_joint(
     - `transform`: the nominal machine->part transform (the study's).
     - `free_transform`: names from ``TRANSFORM_PARAMS`` to estimate.
     - `fix`: ``"feature.parameter"`` names held at nominal.
-    - `loss`, `scale`, `sigma`: as for :func:`least_squares`.
+    - `loss`, `scale`: as for :func:`least_squares`.
+    - `sigma`, `declared`, `declared_dof`: the probe sigma rule of
+      :func:`fit_profile` (known sigma, else the residuals of the whole joint fit
+      with the declared repeatability as prior).
 
     **Returns:** a :class:`ProfileFit` whose ``transform`` holds the estimated
     transform corrections with standard uncertainties, and whose feature fits
@@ -123,11 +129,18 @@ def fit_profile_joint(
         (jnp.asarray(pts[order]), jnp.asarray(float(ball_radius))),
         loss=loss,
         scale=scale,
-        sigma=sigma,
+        sigma=1.0,  # unit covariance, scaled by the probe sigma below
     )
+    inl = np.ones(len(order), dtype=bool)
+    inl[list(res.outliers)] = False
+    ps = probe_sigma(
+        float(np.sum(np.asarray(res.residuals)[inl] ** 2)), int(inl.sum()) - n_par,
+        declared=declared if sigma is None else sigma, declared_dof=declared_dof,
+        known=sigma is not None, what=f"part {part!r}" if part is not None else "part",
+    )  # fmt: skip
     # Map the flat covariance (ravel order: features by sorted id, then transform)
     names = res.param_names
-    cov = res.covariance
+    cov = None if res.covariance is None else np.asarray(res.covariance) * ps.value**2
     fits = {}
     outl = set(res.outliers)
     for f, sl, free in groups:
@@ -172,7 +185,7 @@ def fit_profile_joint(
             i = names.index(f"transform[{k}]")
             se = float(np.sqrt(cov[i, i]))
         tinfo[name] = {"value": float(tvals[k]), "std_error": se}
-    out = ProfileFit(profile, fits, "joint", unmeasured, part)
+    out = ProfileFit(profile, fits, "joint", unmeasured, part, sigma=ps)
     object.__setattr__(out, "transform", tinfo)
     object.__setattr__(out, "result", res)
     return out

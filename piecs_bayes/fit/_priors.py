@@ -13,6 +13,7 @@ $\\log p(\\theta \\mid y) = \\sum_j \\log p_j(\\theta_j) + \\log L(y \\mid \\the
 | `"half_normal"` | `sd`                               | $\\lvert N(0, \\sigma^2)\\rvert$ |
 | `"lognormal"`   | `mu`, `sigma` (of $\\log x$)        | $\\log x \\sim N(\\mu, \\sigma^2)$ |
 | `"student_t"`   | `nu`, `loc` (or `mean`), `scale`   | location-scale $t_\\nu$ |
+| `"scaled_inv_chi2"` | `nu`, `scale`                  | $x^2 \\sim \\nu s^2/\\chi^2_\\nu$ |
 
 Use a normal prior for a calibrated quantity with a standard uncertainty
 (ball radius, a scale error from a laser calibration), a uniform prior for a
@@ -41,6 +42,7 @@ __all__ = [
     "HalfNormal",
     "LogNormal",
     "StudentT",
+    "ScaledInvChi2",
     "prior_from_spec",
 ]
 
@@ -222,6 +224,53 @@ class StudentT(Prior):
         return math.inf if self.nu > 1 else math.nan
 
 
+@dataclass(frozen=True)
+class ScaledInvChi2(Prior):
+    """A prior on a standard deviation $\\sigma$ whose variance is scaled-inverse-$\\chi^2$:
+    $\\sigma^2 \\sim \\nu s^2/\\chi^2_\\nu$. The conjugate prior of a normal variance:
+    a declared value $s$ worth $\\nu$ degrees of freedom (after $n$ residuals with sum of
+    squares $S$, the posterior is the same family with $\\nu + n$ and
+    $(\\nu s^2 + S)/(\\nu + n)$). The package's default prior on the probe sigma
+    when it is estimated (`[probe] repeatability`, `repeatability_dof`)."""
+
+    nu: float
+    scale: float
+    dist: ClassVar[str] = "scaled_inv_chi2"
+
+    def log_pdf(self, x):
+        x = jnp.asarray(x)
+        safe = jnp.where(x > 0.0, x, 1.0)
+        h = 0.5 * self.nu
+        # density of x = sigma: p(sigma^2) * 2 sigma
+        lp = (
+            h * math.log(h) - jsp.gammaln(h) + self.nu * math.log(self.scale)
+            - (2.0 * h + 1.0) * jnp.log(safe) - h * self.scale**2 / (safe * safe)
+            + math.log(2.0)
+        )  # fmt: skip
+        return jnp.where(x > 0.0, lp, -jnp.inf)
+
+    def sample(self, rng, n):
+        return self.scale * np.sqrt(self.nu / rng.chisquare(self.nu, size=n))
+
+    @property
+    def mean(self):
+        if self.nu <= 1:
+            return math.inf
+        h = 0.5 * self.nu
+        return self.scale * math.sqrt(h) * math.exp(math.lgamma(h - 0.5) - math.lgamma(h))
+
+    @property
+    def sd(self):
+        if self.nu <= 2:
+            return math.inf
+        m2 = self.scale**2 * self.nu / (self.nu - 2.0)
+        return math.sqrt(max(m2 - self.mean**2, 0.0))
+
+    @property
+    def support(self):
+        return (0.0, math.inf)
+
+
 # --------------------------------------------------------------------------- spec parsing
 
 # dist -> (alternative key sets, in order of preference); each set is all required
@@ -231,6 +280,7 @@ _KEYS: dict[str, tuple[tuple[str, ...], ...]] = {
     "half_normal": (("sd",),),
     "lognormal": (("mu", "sigma"),),
     "student_t": (("nu", "loc", "scale"), ("nu", "mean", "scale")),
+    "scaled_inv_chi2": (("nu", "scale"),),
 }
 _ALIASES = {"gaussian": "normal", "rectangular": "uniform", "halfnormal": "half_normal"}
 _ALIASES |= {"log_normal": "lognormal", "t": "student_t", "studentt": "student_t"}
@@ -339,5 +389,7 @@ def prior_from_spec(name: str, spec: dict, *, file: str | None = None) -> Prior:
     if dist == "lognormal":
         return LogNormal(v["mu"], _positive(name, "sigma", v["sigma"], file))
     nu = _positive(name, "nu", v["nu"], file)
+    if dist == "scaled_inv_chi2":
+        return ScaledInvChi2(nu, _positive(name, "scale", v["scale"], file))
     loc = v.get("loc", v.get("mean"))
     return StudentT(nu, loc, _positive(name, "scale", v["scale"], file))

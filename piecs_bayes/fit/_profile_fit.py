@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -9,19 +10,22 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import Profile
 from ._features import FeatureFit, fit_feature
+from ._sigma import DECLARED_DOF, ProbeSigma, pooled_residuals, probe_sigma
 
 __all__ = ["ProfileFit", "fit_profile"]
 
 
 @dataclass(frozen=True, eq=False)
 class ProfileFit:
-    """Per-feature fits of one part. ``unmeasured`` lists features without points."""
+    """Per-feature fits of one part. ``unmeasured`` lists features without points;
+    ``sigma`` the probe sigma every covariance is scaled by (see `_sigma`)."""
 
     profile: Profile
     fits: dict
     method: str
     unmeasured: tuple[str, ...] = ()
     part: str | None = None
+    sigma: ProbeSigma | None = None
 
     def __getitem__(self, feature_id: str) -> FeatureFit:
         try:
@@ -58,14 +62,24 @@ class ProfileFit:
                         "std_error": float(s),
                         "n_points": f.n,
                         "residual_sd": f.residual_sd,
+                        "residual_dof": f.residual_dof,
+                        **self._sigma_row(),
                         "n_outliers": len(f.outliers),
                         "method": f.method,
                     }
                 )
         return out
 
+    def _sigma_row(self) -> dict:
+        s = self.sigma
+        if s is None:
+            return {"sigma": float("nan"), "sigma_source": "", "sigma_dof": float("nan")}
+        return {"sigma": s.value, "sigma_source": s.source, "sigma_dof": s.dof}
+
     def __repr__(self) -> str:
         lines = [f"ProfileFit({self.method}, part={self.part!r})"]
+        if self.sigma is not None:
+            lines.append(f"  probe sigma {self.sigma.describe()}")
         for f in self.fits.values():
             lines.append(f"  {f!r}")
         if self.unmeasured:
@@ -83,6 +97,8 @@ def fit_profile(
     loss: str = "huber",
     scale: float | None = None,
     sigma: float | None = None,
+    declared: float | None = None,
+    declared_dof: float = DECLARED_DOF,
     fix: dict | None = None,
     lines=None,
     min_points: dict | None = None,
@@ -95,6 +111,12 @@ def fit_profile(
 
     - `feature_ids`: ``(n,)`` feature id of each point.
     - `centres`: ``(n, 2)`` ball centres in the part frame (mm, radius X).
+    - `sigma`: the probe sigma, known (every covariance scaled by it, $\\nu = \\infty$).
+    - `declared`, `declared_dof`: with `sigma=None` (the default), the covariances
+      are scaled by the residual sd **pooled over every feature** of the part,
+      combined with the declared repeatability as a prior worth `declared_dof`
+      degrees of freedom (`piecs_bayes.fit._sigma`); never by one feature's own
+      residuals, which say little with few points.
     - `fix`: ``{feature_id: (param, ...)}`` parameters held at nominal.
     - `min_points`: ``{"line": 3, "arc": 4}``; fewer (but some) points is an error.
     - `file`, `lines`: where the points came from, for messages and reports.
@@ -139,10 +161,31 @@ def fit_profile(
             method=method,
             loss=loss,
             scale=scale,
-            sigma=sigma,
+            sigma=1.0,  # unit covariances, scaled below by the part's probe sigma
             fix=tuple(fix.get(f.id, ())),
             lines=lines[m],
         )
     if not fits:
         raise InputError("no probe point belongs to any profile feature", file=file)
-    return ProfileFit(profile, fits, method, tuple(unmeasured), part)
+    ss, dof = pooled_residuals(fits.values())
+    try:
+        ps = probe_sigma(
+            ss, dof, declared=declared if sigma is None else sigma,
+            declared_dof=declared_dof, known=sigma is not None,
+            what=f"part {part!r}" if part is not None else "part",
+        )  # fmt: skip
+    except InputError as exc:
+        raise InputError(str(exc), file=file) from None
+    return ProfileFit(
+        profile, scale_fits(fits, ps.value), method, tuple(unmeasured), part, sigma=ps
+    )
+
+
+def scale_fits(fits: dict, sigma: float) -> dict:
+    """Feature fits with unit covariances scaled by the probe `sigma` (mm)."""
+    out = {}
+    for fid, f in fits.items():
+        cov = None if f.covariance is None else np.asarray(f.covariance) * sigma**2
+        se = None if cov is None else np.sqrt(np.diag(cov))
+        out[fid] = dataclasses.replace(f, covariance=cov, std_errors=se)
+    return out

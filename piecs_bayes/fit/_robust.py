@@ -28,6 +28,7 @@ Cauchy 2.385, Tukey 4.685 (about 95 % efficiency at the normal distribution).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import jax
@@ -38,6 +39,7 @@ __all__ = [
     "TUNING",
     "loss_id",
     "mad_sigma",
+    "normal_variance_factor",
     "psi_prime",
     "rho_over_z",
     "rho_prime",
@@ -180,3 +182,23 @@ def mad_sigma(e, mask):
     good = jnp.isfinite(s) & (s > 0)
     s = jnp.where(good, s, jnp.where(rms > 0, rms, 1.0))
     return s
+
+
+@functools.lru_cache(maxsize=16)
+def normal_variance_factor(loss: str) -> float:
+    r"""$\kappa = E[\psi^2]/E[\psi']^2$ at the standard normal, for the named loss at its
+    tuning constant $c$ (scale $c\sigma$): the variance of the M-estimator is
+    $\kappa\,\sigma^2 (J^TJ)^{-1}$ against least squares' $\sigma^2 (J^TJ)^{-1}$
+    (Huber 1981, sec. 6.2). 1 for `"linear"`, 1.0526 for Huber (95 % efficiency)."""
+    import numpy as np
+
+    idx = loss_id(loss)
+    if idx == 0:
+        return 1.0
+    c = TUNING[LOSS_NAMES[idx]]
+    u = np.linspace(-12.0, 12.0, 48001)
+    v = jnp.asarray(u / c)
+    psi = np.asarray(v * rho_prime(idx, v * v))
+    dpsi = np.asarray(psi_prime(idx, v))
+    w = np.exp(-0.5 * u * u) / np.sqrt(2.0 * np.pi) * (u[1] - u[0])
+    return float(np.sum(w * psi**2) / np.sum(w * dpsi) ** 2 * c * c)

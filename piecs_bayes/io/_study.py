@@ -49,13 +49,16 @@ _DIST_LENGTH_KEYS = {"mean", "sd", "low", "high", "scale"}
 @dataclass(frozen=True)
 class ProbeSpec:
     """Touch-trigger probe: ball radius (mm) with its standard uncertainty,
-    repeatability sigma (mm), how the probe files write X, pretravel (mm)."""
+    repeatability sigma (mm), how the probe files write X, pretravel (mm), and the
+    degrees of freedom the declared repeatability is worth as a prior for the
+    pooled residual sigma (``repeatability_dof``; 0: no prior; see docs/uncertainty.md)."""
 
     ball_radius: float
     ball_radius_u: float = 0.0
     repeatability: float = 0.001
     x_mode: str = "diameter"
     pretravel: float = 0.0
+    repeatability_dof: float = 8.0
 
 
 @dataclass(frozen=True)
@@ -173,6 +176,14 @@ class _Reader:
         if nonneg and val < 0:
             raise self.error(
                 f"{path}{key}", f"must be >= 0, got {val!r}", feature=feature, value=val
+            )
+        return val
+
+    def boolean(self, tree, key, path, default: bool) -> bool:
+        val = tree.get(key, default)
+        if not isinstance(val, bool):
+            raise self.error(
+                f"{path}{key}", f"expected true or false (no quotes), got {val!r}", value=val
             )
         return val
 
@@ -505,6 +516,7 @@ def load_study(path) -> Study:
         repeatability=r.number(pr, "repeatability", "probe.", 0.001 / scale, positive=True) * scale,
         x_mode=r.choice(pr, "x_mode", "probe.", ("diameter", "radius"), "diameter"),
         pretravel=r.number(pr, "pretravel", "probe.", 0.0) * scale,
+        repeatability_dof=r.number(pr, "repeatability_dof", "probe.", 8.0, nonneg=True),
     )
     for f in profile.features:
         if f.kind == "arc" and not f.convex and f.radius <= probe.ball_radius:
@@ -533,7 +545,7 @@ def load_study(path) -> Study:
             ft, "loss", "fit.", ("linear", "huber", "soft_l1", "cauchy", "tukey"), "huber"
         ),
         scale=(r.number(ft, "scale", "fit.", positive=True) * scale) if "scale" in ft else None,
-        known_sigma=bool(ft.get("known_sigma", False)),
+        known_sigma=r.boolean(ft, "known_sigma", "fit.", False),
         min_points_line=int(r.number(ft, "min_points_line", "fit.", 3.0, positive=True)),
         min_points_arc=int(r.number(ft, "min_points_arc", "fit.", 4.0, positive=True)),
         likelihood=r.choice(ft, "likelihood", "fit.", ("gaussian", "student_t"), "gaussian"),

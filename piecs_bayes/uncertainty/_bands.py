@@ -192,6 +192,7 @@ def bands_linear(
     factor=None,
     p: float = 0.95,
     dof: float | None = None,
+    cov_estimated=None,
     method: Literal["mc", "qmc", "scheffe"] = "qmc",
     n_sim: int = 100_000,
     seed: int = 0,
@@ -208,6 +209,12 @@ def bands_linear(
     - `p`: coverage probability.
     - `dof`: degrees of freedom when the scale was estimated (Student-t
       pointwise, multivariate-t simultaneous); `None` for a known scale.
+    - `cov_estimated`: with `cov` and `dof`, the part of `cov` whose scale was
+      estimated with `dof` (Type A, e.g. the probe repeatability's share); the
+      rest is known (Type B). The simulated error is then
+      $L_A\\xi_A\\sqrt{\\nu/\\chi^2_\\nu} + L_B\\xi_B$ and the pointwise
+      factors are $t_p(\\nu_i)$ with Welch-Satterthwaite's $\\nu_i$ per point;
+      without it the whole covariance is treated as estimated (conservative).
     - `method`: `"qmc"` (scrambled Sobol, default), `"mc"` (pseudo-random) or
       `"scheffe"` (the conservative $\\sqrt{\\chi^2_{r,p}}$ bound).
     - `n_sim`, `seed`: simulated draws (rounded up to a power of two for `"qmc"`).
@@ -242,6 +249,11 @@ def bands_linear(
     if dof is not None and not dof > 0:
         raise InputError(f"dof: got {dof!r}, expected > 0", value=dof)
     sd = np.sqrt(d)
+    if cov_estimated is not None:
+        if c is None or dof is None:
+            raise InputError("bands_linear: cov_estimated needs cov= and dof=")
+        return _bands_mixed(m, c, np.asarray(cov_estimated, float), sd, p, float(dof),
+                            method, int(n_sim), int(seed))  # fmt: skip
     cp = stats.norm.ppf(0.5 + p / 2) if dof is None else stats.t.ppf(0.5 + p / 2, dof)
     if c is None:
         lf = lfull / np.where(sd > 0.0, sd, 1.0)[:, None]
@@ -258,11 +270,55 @@ def bands_linear(
     if n_sim < 100:
         raise InputError(f"n_sim: got {n_sim!r}, expected >= 100", value=n_sim)
     k = lf.shape[1]
-    xi, scale = _base_draws(method, k, int(n_sim), int(seed), None if dof is None else float(dof))
+    # dof to two significant digits: bands of many parts (each with its own estimated
+    # sigma) share the cached draws; a 5 % change of dof moves the quantile by < 0.1 %
+    xi, scale = _base_draws(method, k, int(n_sim), int(seed), _dof_key(dof))
     mx = np.empty(xi.shape[0])
     for i in range(0, xi.shape[0], 8192):  # bound memory: (chunk, n)
         mx[i : i + 8192] = np.abs(xi[i : i + 8192] @ lf.T).max(axis=1)
     if scale is not None:
         mx = mx / scale
+    cs, se = _quantile_with_se(mx, p)
+    return _make(m, sd, cp, cs, se, p, f"linear-{method}", xi.shape[0])
+
+
+def _dof_key(dof) -> float | None:
+    return None if dof is None else float(f"{float(dof):.2g}")
+
+
+def _cov_factor(c: np.ndarray) -> np.ndarray:
+    """Rank-r factor of a covariance: C = L L^T, L of shape (n, r)."""
+    w, v = np.linalg.eigh(0.5 * (c + c.T))
+    keep = w > 1e-12 * max(w.max(), 0.0)
+    return v[:, keep] * np.sqrt(w[keep])
+
+
+def _bands_mixed(m, c, ca, sd, p, dof, method, n_sim, seed) -> Bands:
+    """`bands_linear` for a covariance with an estimated (Type A, `dof`) part `ca`."""
+    if ca.shape != c.shape or not np.all(np.isfinite(ca)):
+        raise InputError(f"cov_estimated: got shape {ca.shape}, expected {c.shape}, finite")
+    safe = np.where(sd > 0.0, sd, 1.0)[:, None]
+    la = _cov_factor(ca) / safe
+    lb = _cov_factor(c - ca) / safe
+    da = np.clip(np.diag(ca), 0.0, None)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nu = np.where(da > 0, dof * (np.diag(c) / np.where(da > 0, da, 1.0)) ** 2, np.inf)
+    q = 0.5 + p / 2
+    cp = np.where(np.isfinite(nu), stats.t.ppf(q, np.where(np.isfinite(nu), nu, 1.0)), 0.0)
+    cp = np.where(np.isfinite(nu), cp, stats.norm.ppf(q))
+    ka, kb = la.shape[1], lb.shape[1]
+    if ka + kb == 0:
+        return _make(m, sd, cp, 0.0, 0.0, p, f"linear-{method}", 0)
+    if method == "scheffe":
+        cs = math.sqrt((ka + kb) * stats.f.ppf(p, ka + kb, dof))
+        return _make(m, sd, cp, cs, 0.0, p, "linear-scheffe", 0)
+    if n_sim < 100:
+        raise InputError(f"n_sim: got {n_sim!r}, expected >= 100", value=n_sim)
+    xi, scale = _base_draws(method, ka + kb, n_sim, seed, _dof_key(dof))
+    mx = np.empty(xi.shape[0])
+    for i in range(0, xi.shape[0], 8192):
+        x = xi[i : i + 8192]
+        z = (x[:, :ka] @ la.T) / scale[i : i + 8192, None] + x[:, ka:] @ lb.T
+        mx[i : i + 8192] = np.abs(z).max(axis=1)
     cs, se = _quantile_with_se(mx, p)
     return _make(m, sd, cp, cs, se, p, f"linear-{method}", xi.shape[0])

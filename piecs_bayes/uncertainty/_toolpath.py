@@ -16,6 +16,7 @@ bands are pointwise and simultaneous bands of that offset.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import jax
@@ -25,6 +26,8 @@ import numpy as np
 from ..compensate._mirror import adjusted_geometry
 from ..errors import InputError
 from ..fit._measurement import SOURCE_EFFECTS, probe_residuals
+from ..fit._robust import normal_variance_factor
+from ..fit._sigma import coverage_factor, effective_dof
 from ..geometry import Line, MachineTransform, Profile
 from ._bands import Bands, bands_from_samples, bands_linear
 from ._propagate import uncertainty_budget
@@ -103,6 +106,13 @@ class ToolpathUncertainty:
     bands of the offset; ``budget`` (linearised only) the variance contributed
     by each source to each vertex coordinate (``vertex_budget`` ``{source: (n+1, 2)}``)
     and to each grid offset (``offset_budget``); ``deviation_cov`` per feature.
+
+    ``dof``: degrees of freedom of the probe sigma (linearised; ``inf`` when it is
+    known). Each quantity's effective dof is Welch-Satterthwaite's from its
+    repeatability share (``deviation_dof``, ``vertex_dof``, ``offset_dof``), and
+    its `p` interval is $y \\pm t_p(\\nu_\\mathrm{eff})\\,u$ (``deviation_interval``,
+    ``vertex_interval``). The Monte Carlo route's intervals are the draws'
+    equal-tailed quantiles (JCGM 101), sigma's uncertainty integrated out.
     """
 
     method: str
@@ -117,10 +127,59 @@ class ToolpathUncertainty:
     vertex_budget: dict | None = None
     offset_budget: dict | None = None
     deviation_budget: dict | None = None
+    dof: float = math.inf
+    p: float = 0.95
+    quantile_intervals: dict | None = None  # Monte Carlo: {"deviation": {...}, "vertex": (lo, hi)}
 
     @property
     def vertex_sd(self) -> np.ndarray:
         return np.sqrt(np.stack([self.vertex_cov[:, 0, 0], self.vertex_cov[:, 1, 1]], axis=1))
+
+    def _ws(self, total_var, budget_rep) -> np.ndarray:
+        if budget_rep is None or math.isinf(self.dof):
+            return np.full(np.shape(total_var), math.inf)
+        return effective_dof(np.sqrt(total_var), np.sqrt(np.clip(budget_rep, 0.0, None)), self.dof)
+
+    @property
+    def deviation_dof(self) -> dict:
+        """Effective degrees of freedom per feature parameter (``inf``: normal)."""
+        rep = None if self.deviation_budget is None else self.deviation_budget["repeatability"]
+        out, i = {}, 0
+        for fid, c in self.deviation_cov.items():
+            k = c.shape[0]
+            out[fid] = self._ws(np.diag(c), None if rep is None else rep[i : i + k])
+            i += k
+        return out
+
+    @property
+    def vertex_dof(self) -> np.ndarray:
+        rep = None if self.vertex_budget is None else self.vertex_budget["repeatability"]
+        return self._ws(self.vertex_sd**2, rep)
+
+    @property
+    def offset_dof(self) -> np.ndarray:
+        rep = None if self.offset_budget is None else self.offset_budget["repeatability"]
+        return self._ws(self.offset_sd**2, rep)
+
+    @property
+    def deviation_interval(self) -> dict:
+        """``{feature: (lower, upper)}`` `p` intervals of every deviation parameter."""
+        if self.quantile_intervals is not None:
+            return self.quantile_intervals["deviation"]
+        dofs = self.deviation_dof
+        out = {}
+        for fid, c in self.deviation_cov.items():
+            half = coverage_factor(dofs[fid], self.p) * np.sqrt(np.clip(np.diag(c), 0.0, None))
+            out[fid] = (self.deviations[fid] - half, self.deviations[fid] + half)
+        return out
+
+    @property
+    def vertex_interval(self) -> tuple[np.ndarray, np.ndarray]:
+        """`p` intervals of the vertex coordinates, ``(lower, upper)`` each ``(n+1, 2)``."""
+        if self.quantile_intervals is not None:
+            return self.quantile_intervals["vertex"]
+        half = coverage_factor(self.vertex_dof, self.p) * self.vertex_sd
+        return self.vertices - half, self.vertices + half
 
     def __repr__(self) -> str:
         sd = self.vertex_sd
@@ -213,12 +272,15 @@ def linearised_toolpath(
     *,
     ball_radius: float,
     sigma: float,
+    dof: float = math.inf,
     transform: MachineTransform = MachineTransform(),
     source_sd: dict | None = None,
     approach=None,
     gain=1.0,
     grid: PathGrid | None = None,
     p: float = 0.95,
+    band_sims: int = 100_000,
+    loss: str = "linear",
 ) -> ToolpathUncertainty:
     """GUM propagation from probe points and error sources to the adjusted path.
 
@@ -234,10 +296,17 @@ def linearised_toolpath(
       ball centres in machine coordinates (radius X, mm).
     - `deviations`: the fitted deviations per feature id (the solution).
     - `sigma`: probe repeatability: each coordinate of each point has variance
-      ``sigma**2`` (the "repeatability" source).
+      ``sigma**2`` (the "repeatability" source); `dof`: its degrees of freedom
+      (``ProfileFit.sigma``; ``inf`` when known): intervals and bands use
+      Student-t quantiles with Welch-Satterthwaite effective dof.
     - `source_sd`: standard uncertainty of each other source (names in
       ``LINEARISED_SOURCES``), e.g. the sd of the study's priors.
     - `gain`: compensation gain(s); `grid`: where the offset is evaluated.
+    - `band_sims`: quasi-random draws for the simultaneous band's critical value.
+    - `loss`: the fit's loss. A robust (M-)estimator is less efficient than least
+      squares at the normal: the repeatability variance is multiplied by its
+      asymptotic factor $\\kappa = E[\\psi^2]/E[\\psi']^2$ (Huber: 1.053). Without it the
+      intervals of a robust fit with a known sigma covered 94.3 % instead of 95 %.
 
     **Returns:** a :class:`ToolpathUncertainty` with the budget.
     """
@@ -279,12 +348,13 @@ def linearised_toolpath(
     jac = np.vstack([d_dx, j_path @ d_dx])
     n_pts = pts.size
     y = np.concatenate([np.asarray(dev0), y_path])
-    var_x = np.concatenate([np.full(n_pts, sigma**2), np.array([source_sd[n] ** 2 for n in names])])
+    var_rep = sigma**2 * normal_variance_factor(loss)
+    var_x = np.concatenate([np.full(n_pts, var_rep), np.array([source_sd[n] ** 2 for n in names])])
     cov_y = (jac * var_x) @ jac.T
     n_dev = dev0.size
     n_v = 2 * (len(profile) + 1)
     sl_dev, sl_v, sl_o = slice(0, n_dev), slice(n_dev, n_dev + n_v), slice(n_dev + n_v, None)
-    sources = {"repeatability": (np.arange(n_pts), np.full(n_pts, sigma**2))}
+    sources = {"repeatability": (np.arange(n_pts), np.full(n_pts, var_rep))}
     for k, name in enumerate(names):
         sources[name] = (np.array([n_pts + k]), np.array([source_sd[name] ** 2]))
     budget = uncertainty_budget(jac, sources)
@@ -293,7 +363,15 @@ def linearised_toolpath(
     vcov = np.array([cv[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] for j in range(len(vertices))])
     offset = y[sl_o]
     ocov = cov_y[sl_o, sl_o]
-    bands = bands_linear(offset, ocov, p=p)
+    o_budget = {k: v[sl_o] for k, v in budget.items()}
+    if math.isfinite(dof):
+        # the repeatability's share is scaled by the estimated sigma (t, `dof`); the
+        # declared sources are known (Type B)
+        j_rep = jac[sl_o, :n_pts]
+        cov_a = (j_rep * var_rep) @ j_rep.T
+        bands = bands_linear(offset, ocov, p=p, dof=dof, cov_estimated=cov_a, n_sim=band_sims)
+    else:
+        bands = bands_linear(offset, ocov, p=p, n_sim=band_sims)
     dcov = cov_y[sl_dev, sl_dev]
     dev_cov, dev_val, i = {}, {}, 0
     for f in feats:
@@ -311,8 +389,10 @@ def linearised_toolpath(
         deviations=dev_val,
         deviation_cov=dev_cov,
         vertex_budget={k: v[sl_v].reshape(-1, 2) for k, v in budget.items()},
-        offset_budget={k: v[sl_o] for k, v in budget.items()},
+        offset_budget=o_budget,
         deviation_budget={k: v[sl_dev] for k, v in budget.items()},
+        dof=float(dof),
+        p=p,
     )
 
 
@@ -353,6 +433,15 @@ def monte_carlo_toolpath(
     }
     center_v, center_o = path_f(tuple(jnp.asarray(means[f.id]) for f in profile.features))
     bands = bands_from_samples(offs, center=np.asarray(center_o), p=p)
+    q = [0.5 - p / 2, 0.5 + p / 2]
+    vq = np.quantile(verts, q, axis=0)
+    intervals = {
+        "deviation": {
+            f.id: tuple(np.quantile(np.asarray(s), q, axis=0))
+            for f, s in zip(profile.features, stacked, strict=True)
+        },
+        "vertex": (vq[0], vq[1]),
+    }
     return ToolpathUncertainty(
         method="Monte Carlo (JCGM 101)",
         grid=grid,
@@ -366,4 +455,6 @@ def monte_carlo_toolpath(
             f.id: np.atleast_2d(np.cov(np.asarray(s), rowvar=False))
             for f, s in zip(profile.features, stacked, strict=True)
         },
+        p=p,
+        quantile_intervals=intervals,
     )
