@@ -45,7 +45,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--parts", type=int, default=1000)
     ap.add_argument("--no-bayes", action="store_true", help="linearised route only")
-    ap.add_argument("--steps", type=int, default=1500, help="MCMC steps per part")
+    ap.add_argument("--steps", type=int, default=3000, help="MCMC steps per part")
+    ap.add_argument("--walkers", type=int, default=64, help="walkers of the one ensemble per part")
     args = ap.parse_args(argv)
     profile = demo_profile()
     truth = process_deviations(profile, DEMO_ERRORS)
@@ -56,7 +57,7 @@ def main(argv=None) -> int:
             res = coverage_check(
                 profile, truth, n_parts=args.parts, points=points, margin=margin,
                 transform=DEMO_TRANSFORM, source_sd=SOURCES, known_sigma=known,
-                bayes=not args.no_bayes, bayes_steps=args.steps, bayes_walkers=44, seed=2026,
+                bayes=not args.no_bayes, bayes_steps=args.steps, bayes_walkers=args.walkers, seed=2026,
             )  # fmt: skip
             wall = time.perf_counter() - t0
             label = f"{name}, {'known sigma' if known else 'pooled sigma (default)'}"

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from . import _cli_types as T
+
 __all__ = ["register"]
 
 EXAMPLES = {
@@ -77,7 +79,7 @@ def register(subparsers) -> None:
     )
     p.add_argument(
         "--chunk-parts",
-        type=int,
+        type=T.positive_int,
         default=None,
         metavar="N",
         help="parts per batch fit (per task with --scheduler; default 512)",

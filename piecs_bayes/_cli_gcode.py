@@ -16,6 +16,8 @@ import argparse
 import math
 from pathlib import Path
 
+from . import _cli_types as T
+
 __all__ = ["register"]
 
 
@@ -51,6 +53,14 @@ def register(subparsers) -> None:
         help="convex corners: 'arc' inserts an arc like LinuxCNC (default); 'extend' uses the "
         "1969 bisector / offset-intersection rule",
     )
+    n.add_argument(
+        "--kind",
+        choices=("auto", "external", "internal", "unchecked"),
+        default="auto",
+        help="where the material is, to refuse G41/G42 on the side that cuts into the part: "
+        "'external' (OD), 'internal' (bore), 'auto' (from where the tool approaches; "
+        "default) or 'unchecked'",
+    )
     _common(n)
     n.set_defaults(func=cmd_nose_comp)
 
@@ -82,7 +92,10 @@ def _common(p) -> None:
         "rs274 reads inches). Default mm",
     )
     p.add_argument(
-        "--nose-radius", type=float, default=None, help="nose radius (mm) for G41/G42 tools"
+        "--nose-radius",
+        type=T.positive_mm,
+        default=None,
+        help="nose radius (mm, > 0) for G41/G42 tools",
     )
     p.add_argument(
         "--units",
@@ -113,8 +126,9 @@ def cmd_nose_comp(args, console) -> int:
     from .geometry import nose_compensate
 
     program, tools = _load(args)
+    kind = None if args.kind == "unchecked" else args.kind
     result = nose_compensate(
-        program, corner=args.corner, tool_table=tools, nose_radius=args.nose_radius
+        program, corner=args.corner, tool_table=tools, nose_radius=args.nose_radius, kind=kind
     )
     data = result.text.encode("utf-8", errors="surrogateescape")
     protect = [args.program] + ([args.tool_table] if args.tool_table else [])

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from . import _cli_types as T
+
 __all__ = ["register", "job_options", "run_job_from_args", "write_report"]
 
 EXAMPLE = (
@@ -30,13 +32,13 @@ def job_options(p) -> None:
     )
     p.add_argument(
         "--steps",
-        type=int,
+        type=T.positive_int,
         default=None,
         help="MCMC steps per ensemble (default: the study's fit.bayes_steps)",
     )
     p.add_argument(
         "--nose-radius",
-        type=float,
+        type=T.positive_mm,
         default=None,
         help="tool nose radius (mm) to check the adjusted program for gouges "
         "(default: the study's program.nose_radius, else offsets.current_r)",

@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+from . import _cli_types as T
 from .errors import AnalysisError, InputError
 
 __all__ = ["main", "build_parser"]
@@ -43,8 +44,14 @@ def _add_common(p: argparse.ArgumentParser, *, out: bool = True) -> None:
         p.add_argument(
             "--out", type=Path, default=None, help="output folder (default: reports/<study name>)"
         )
-    p.add_argument("--seed", type=int, default=0, help="random seed for anything stochastic")
+    p.add_argument(
+        "--seed", type=T.nonneg_int, default=0, help="random seed for anything stochastic"
+    )
     p.add_argument("--quiet", "-q", action="store_true", help="print only errors")
+    p.add_argument(
+        "--debug", action="store_true", default=argparse.SUPPRESS,
+        help="show the traceback of an error instead of one line",
+    )  # fmt: skip
 
 
 def _sub(sub, name: str, help_: str) -> argparse.ArgumentParser:
@@ -68,6 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     parser.add_argument("--version", action="version", version=f"piecs-bayes {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks instead of one line")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -79,7 +87,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="default: the study's fit.method; bayes: robust fit, then the posterior (emcee)",
     )
-    p.add_argument("--steps", type=int, default=None, help="bayes: MCMC steps per ensemble")
+    p.add_argument(
+        "--steps", type=T.positive_int, default=None, help="bayes: MCMC steps per ensemble"
+    )
     p.add_argument("--part", default=None, help="part id when the probe data holds several parts")
     _add_common(p)
     p.set_defaults(func=cmd_fit)
@@ -94,10 +104,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="default: the study's fit.method; bayes adds Monte Carlo bounds from the posterior",
     )
-    p.add_argument("--steps", type=int, default=None, help="bayes: MCMC steps per ensemble")
+    p.add_argument(
+        "--steps", type=T.positive_int, default=None, help="bayes: MCMC steps per ensemble"
+    )
     p.add_argument("--part", default=None, help="part id when the probe data holds several parts")
     p.add_argument(
-        "--gain", type=float, default=None, help="feedback gain in [0, 1] (default: the study's)"
+        "--gain", type=T.gain, default=None, help="feedback gain in [0, 1] (default: the study's)"
     )
     p.add_argument(
         "--program-out",
@@ -107,7 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--nose-radius",
-        type=float,
+        type=T.positive_mm,
         default=None,
         help="tool-nose radius (mm) for the gouge check (default: the study's [program])",
     )
@@ -116,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = _sub(sub, "simulate", "Write simulated data sets with known truth (demo part, batch run).")
     p.add_argument("which", choices=("demo", "batch"), help="which data set")
-    p.add_argument("--parts", type=int, default=36, help="batch: number of parts")
+    p.add_argument("--parts", type=T.positive_int, default=36, help="batch: number of parts")
     _add_common(p)
     p.set_defaults(func=cmd_simulate)
 
@@ -195,8 +207,9 @@ def _write_bayes(out, study, bayes, console, written):
     from .export import posterior_csv
 
     _write(out, "posterior.csv", posterior_csv(bayes), study, console, written)
-    path = out / "posterior.nc"
-    bayes.posterior.to_netcdf(path)
+    from .export import write_file_atomic
+
+    path = write_file_atomic(out / "posterior.nc", bayes.posterior.to_netcdf, protect=[study.path])
     written.append(path)
 
 
@@ -371,19 +384,102 @@ def cmd_demo(args, console) -> int:
     return 0
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised where the program is, so that temporaries are removed."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"piecs-bayes: warning: {message}", file=sys.stderr, flush=True)
+
+
+def _say_error(prefix: str, msg: str) -> None:
+    try:
+        print(f"piecs-bayes: {prefix}: {msg}", file=sys.stderr, flush=True)
+    except (BrokenPipeError, OSError):
+        pass
+
+
+def _os_error(exc: OSError) -> str:
+    where = f"{exc.filename}: " if exc.filename else ""
+    what = {
+        PermissionError: "permission denied",
+        FileNotFoundError: "not found",
+        IsADirectoryError: "is a folder, expected a file",
+        NotADirectoryError: "a parent of this path is a file, not a folder",
+        FileExistsError: "exists and is not a folder",
+    }.get(type(exc), exc.strerror or str(exc))
+    return f"{where}{what}"
+
+
 def main(argv=None) -> int:
+    """Run one command; every failure is one line on stderr and an exit code:
+    0 ok, 1 the analysis failed, 2 bad input or usage (argparse), 130 interrupted
+    (Ctrl-C), 143 terminated (SIGTERM). ``--debug`` shows the traceback instead."""
+    import signal
+    import traceback
+    import warnings
+
     os.environ.setdefault("MPLBACKEND", "Agg")
     parser = build_parser()
     args = parser.parse_args(argv)
+    debug = bool(getattr(args, "debug", False))
     console = _Console(getattr(args, "quiet", False))
+    previous = None
     try:
-        return int(args.func(args, console) or 0)
-    except InputError as exc:
-        print(f"piecs-bayes: error: {exc}", file=sys.stderr)
-        return 2
-    except AnalysisError as exc:
-        print(f"piecs-bayes: analysis failed: {exc}", file=sys.stderr)
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (e.g. called from a worker): leave it
+        previous = None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")  # shown once each, as one line; never fatal
+            warnings.showwarning = _show_warning
+            return int(args.func(args, console) or 0)
+    except (InputError, AnalysisError) as exc:
+        if debug:
+            traceback.print_exc()
+        bad_input = isinstance(exc, InputError)
+        _say_error("error" if bad_input else "analysis failed", str(exc))
+        return 2 if bad_input else 1
+    except KeyboardInterrupt:
+        _say_error("interrupted", "stopped by Ctrl-C; no partial output was left")
+        return 130
+    except Terminated:
+        _say_error("terminated", "stopped by SIGTERM; no partial output was left")
+        return 143
+    except BrokenPipeError:
+        # the reader of our output went away (`| head`): quiet, and no second error at exit
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        _say_error("stopped", "standard output was closed (broken pipe)")
         return 1
+    except UnicodeDecodeError as exc:
+        if debug:
+            raise
+        _say_error("error", f"a file is not valid {exc.encoding} text (byte {exc.start}): {exc}")
+        return 2
+    except OSError as exc:
+        if debug:
+            raise
+        _say_error("error", _os_error(exc))
+        return 2
+    except Exception as exc:  # noqa: BLE001 - the last line of defence: one line, exit 1
+        if debug:
+            raise
+        _say_error(
+            "internal error",
+            f"{type(exc).__name__}: {exc} (please report it; rerun with --debug for the traceback)",
+        )
+        return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

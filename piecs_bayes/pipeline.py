@@ -6,6 +6,7 @@ immutable results that print well and that the writers in :mod:`.export` read.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -15,6 +16,7 @@ from .fit import ProfileFit, fit_profile, fit_profile_joint
 from .fit._features import to_part_frame
 from .fit._robust import TUNING
 from .io import ProbeData, Study, load_study, read_probe_csv
+from .io._plausibility import check_probe_data
 
 if TYPE_CHECKING:  # compensate pulls in scipy (~0.6 s): imported where it is used
     from .compensate import AdjustedPath
@@ -38,13 +40,30 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
     """Read the study's probe files (or ``files``) into one :class:`ProbeData`.
 
     Rows of several files are concatenated; each file's rows get the file stem
-    as part id unless the file has a ``part`` column.
+    as part id unless the file has a ``part`` column. A file listed twice (or two
+    files with identical contents) is refused; every file's points pass the
+    plausibility checks (`io._plausibility`: distance from the nominal feature,
+    position along it, repeated triggers) before anything is fitted.
     """
     files = list(files) if files is not None else list(study.probe_files)
     if not files:
         raise InputError("the study lists no probe files (study.probe_files)", file=str(study.path))
+    _refuse_repeated_files(files)
     datas = [
-        read_probe_csv(f, units=study.units, x_mode=study.probe.x_mode, features=study.profile.ids)
+        check_probe_data(
+            read_probe_csv(
+                f,
+                units=study.units,
+                x_mode=study.probe.x_mode,
+                features=study.profile.ids,
+                encoding=study.encoding,
+            ),
+            study.profile,
+            transform=study.transform,
+            ball_radius=study.probe.ball_radius,
+            max_correction=study.compensation.max_correction,
+            settings=study.plausibility,
+        )
         for f in files
     ]
     if len(datas) == 1:
@@ -64,6 +83,24 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
         time=cat("time"),
         temperature=cat("temperature"),
     )
+
+
+def _refuse_repeated_files(files) -> None:
+    """The same probe data listed twice would count every trigger twice."""
+    import hashlib
+
+    from .io._text import read_bytes
+
+    seen: dict[str, str] = {}
+    for f in files:
+        digest = hashlib.sha256(read_bytes(f, what="probe file")).hexdigest()
+        if digest in seen:
+            same = "is listed twice" if Path(seen[digest]) == Path(f) else f"repeats {seen[digest]}"
+            raise InputError(
+                f"probe file {same} (identical contents): its triggers would count twice",
+                file=str(f),
+            )
+        seen[digest] = str(f)
 
 
 def robust_scale(study: Study) -> float:
@@ -87,17 +124,12 @@ def fit_study(
 ) -> ProfileFit:
     """Fit one part of a study (``method``: ``"lsq"`` or ``"robust"``, default from the study).
 
-    With several parts in the probe data, ``part`` chooses one (default: the first).
+    With several parts in the probe data, ``part`` chooses one (required: an
+    `InputError` lists the parts when it is missing).
     """
     probe = load_probe_data(study) if probe is None else probe
-    parts = probe.parts
-    if part is None:
-        part = parts[0]
-    elif part not in parts:
-        raise InputError(
-            f"no part {part!r} in the probe data; parts are {', '.join(parts)}", file=probe.file
-        )
-    data = probe.for_part(part) if len(parts) > 1 else probe
+    data = _part_data(study, probe, part)
+    part = data.parts[0]
     method = method or study.fit.method
     if method == "bayes":
         method = "robust"  # the Bayesian fit starts from the robust one; see fit.bayes
@@ -157,11 +189,21 @@ def compensate_study(study: Study, fit: ProfileFit, *, gain=None) -> AdjustedPat
 
 
 def _part_data(study: Study, probe: ProbeData | None, part: str | None) -> ProbeData:
+    """The rows of one part: `part`, or the only one; several and none named: refused."""
     probe = load_probe_data(study) if probe is None else probe
     parts = probe.parts
-    if len(parts) == 1:
-        return probe
-    return probe.for_part(part if part is not None else parts[0])
+    if part is None and len(parts) > 1:
+        shown = ", ".join(parts[:8]) + (", ..." if len(parts) > 8 else "")
+        raise InputError(
+            f"the probe data hold {len(parts)} parts ({shown}); fit one with --part PART "
+            "(part=... from Python), or all of them with `piecs-bayes capability`",
+            file=probe.file,
+        )
+    if part is not None and part not in parts:
+        raise InputError(
+            f"no part {part!r} in the probe data; parts are {', '.join(parts)}", file=probe.file
+        )
+    return probe if len(parts) == 1 else probe.for_part(part)
 
 
 def inliers(fit: ProfileFit, probe: ProbeData) -> ProbeData:

@@ -147,6 +147,7 @@ class JobResults:
     timings: Mapping[str, float] = field(default_factory=dict)
     created: str = ""
     warnings: tuple[str, ...] = ()
+    part_note: str = ""
 
     @property
     def converged(self) -> bool | None:
@@ -319,6 +320,15 @@ def run_job(
             study = load_study(study)
         probe = load_probe_data(study)
     say(f"read {study!r}: {len(probe)} probe points, {len(probe.parts)} part(s)")
+    part_note = ""
+    if part is None and len(probe.parts) > 1:
+        # the part just measured (production order) is the one to compensate; said, not silent
+        part = probe.parts[-1]
+        part_note = (
+            f"the probe data hold {len(probe.parts)} parts: part {part} (the last, in "
+            "production order) is fitted and compensated; choose another with --part"
+        )
+        say(part_note)
 
     # 1. robust fit
     with timed("fit"):
@@ -523,6 +533,7 @@ def run_job(
         settings=MappingProxyType(settings),
         timings=MappingProxyType(timings),
         created=created,
+        part_note=part_note,
         warnings=tuple(caught),
     )
 

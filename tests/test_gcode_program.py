@@ -18,17 +18,18 @@ DEMO = Path(__file__).parent.parent / "data" / "demo"
 
 
 def _profile(v, fillet_c, round_c, ids=None):
-    """The stepped shaft from its 9 vertices and two arc centres (radius mm)."""
+    """The stepped shaft from its 9 vertices and two arc centres (radius mm); the
+    material is right of travel (side -1: an external profile cut toward the chuck)."""
     return Profile(
         (
-            Line("face_end", v[0], v[1], 1),
-            Line("dia_24", v[1], v[2], 1),
-            Line("taper", v[2], v[3], 1),
-            Line("dia_30", v[3], v[4], 1),
-            Arc("fillet", v[4], v[5], fillet_c, False, 1),
-            Line("shoulder", v[5], v[6], 1),
-            Arc("round", v[6], v[7], round_c, True, 1),
-            Line("dia_44", v[7], v[8], 1),
+            Line("face_end", v[0], v[1], -1),
+            Line("dia_24", v[1], v[2], -1),
+            Line("taper", v[2], v[3], -1),
+            Line("dia_30", v[3], v[4], -1),
+            Arc("fillet", v[4], v[5], fillet_c, False, -1),
+            Line("shoulder", v[5], v[6], -1),
+            Arc("round", v[6], v[7], round_c, True, -1),
+            Line("dia_44", v[7], v[8], -1),
         )
     )
 
@@ -175,11 +176,11 @@ def _groove(walls):
     z1, z2 = walls
     return Profile(
         (
-            Line("dia_a", (10, 0), (10, z1), 1),
-            Line("wall_a", (10, z1), (8, z1), 1),
-            Line("bottom", (8, z1), (8, z2), 1),
-            Line("wall_b", (8, z2), (10, z2), 1),
-            Line("dia_b", (10, z2), (10, -20), 1),
+            Line("dia_a", (10, 0), (10, z1), -1),
+            Line("wall_a", (10, z1), (8, z1), -1),
+            Line("bottom", (8, z1), (8, z2), -1),
+            Line("wall_b", (8, z2), (10, z2), -1),
+            Line("dia_b", (10, z2), (10, -20), -1),
         )
     )
 

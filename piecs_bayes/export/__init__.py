@@ -1,6 +1,7 @@
 """Writers: results tables, adjusted programs, error-spec files, reports. Never re-fit."""
 
 from ._atomic import write_bytes_atomic as write_bytes_atomic
+from ._atomic import write_file_atomic as write_file_atomic
 from ._atomic import write_text_atomic as write_text_atomic
 from ._errspec import CompensationTable as CompensationTable
 from ._errspec import ErrorSpec as ErrorSpec

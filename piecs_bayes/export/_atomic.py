@@ -13,10 +13,12 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["write_text_atomic", "write_bytes_atomic"]
+__all__ = ["write_text_atomic", "write_bytes_atomic", "write_file_atomic"]
 
 
 def _check(path: Path, protect: Iterable[str | os.PathLike] | None) -> None:
+    if path.is_dir():
+        raise InputError("is a folder; give the output a file name", file=str(path))
     for p in protect or ():
         p = Path(p)
         if p.exists() and path.exists() and os.path.samefile(p, path):
@@ -56,3 +58,26 @@ def write_text_atomic(path, text: str, *, protect=None, newline: str = "\n") -> 
     if newline != "\n":
         text = text.replace("\n", newline)
     return write_bytes_atomic(path, text.encode("utf-8"), protect=protect)
+
+
+def write_file_atomic(path, writer, *, protect=None) -> Path:
+    """Atomic output of a writer that wants a file name (netCDF, a library's
+    `to_file`): ``writer(tmp)`` writes a temporary beside ``path``, which is then
+    renamed; on any exception (Ctrl-C and SIGTERM in the CLI included) it is removed
+    and ``path`` is left as it was. Returns the path."""
+    path = Path(path)
+    _check(path, protect)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        writer(tmp)
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path

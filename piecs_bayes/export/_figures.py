@@ -381,7 +381,12 @@ def residuals_figure(res):
                 color="C3",
             )
         ax.set_ylim(-lim, lim)
-        ax.set_title(f"{ff.id}: {ff.n} points, s = {ff.residual_sd * 1e3:.2f} µm", fontsize=8.5)
+        s_txt = (
+            f"s = {ff.residual_sd * 1e3:.2f} µm ({ff.residual_dof} dof)"
+            if np.isfinite(ff.residual_sd)
+            else "no residual dof"
+        )
+        ax.set_title(f"{ff.id}: {ff.n} points, {s_txt}", fontsize=8.5)
         ax.set_xlabel("along feature (mm)", fontsize=8)
         ax.set_ylabel("residual (µm)", fontsize=8)
     fig.suptitle(

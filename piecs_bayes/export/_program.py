@@ -41,6 +41,8 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..errors import AnalysisError, InputError
 from ..geometry import Arc, Line, Profile
 
@@ -275,6 +277,22 @@ def _default_decimals(program, units):
     return max(best, 3 if units == "mm" else 4)
 
 
+def _check_sides(program, profile: Profile, bmap) -> None:
+    """G41/G42 must put the nose on the air side of the features its blocks cut:
+    the mapped feature's outward normal is the air side (`check_comp_sides`)."""
+    from ..geometry._nosecomp import check_comp_sides
+
+    def air(m):
+        fid = bmap.lines.get(m.line)
+        if fid is None:
+            return None
+        mid = (np.asarray(m.start) + np.asarray(m.end)) / 2.0
+        n = np.asarray(profile[fid].outward_normal(mid))
+        return (float(n[0]), float(n[1]))
+
+    check_comp_sides(program, air)
+
+
 def adjust_program(
     program,
     nominal_profile: Profile,
@@ -316,6 +334,7 @@ def adjust_program(
             f"ones {nominal_profile.ids}"
         )
     bmap = map_blocks_to_profile(program, nominal_profile, tol_mm=tol_mm, mapping=mapping)
+    _check_sides(program, nominal_profile, bmap)
     target: dict[int, tuple] = {}  # line -> (new end, new centre or None)
     moves = {m.line: m for m in program.moves}
     for ln, fid in bmap.lines.items():

@@ -242,6 +242,8 @@ def _headline(res) -> list[str]:
         + (f" ({study.fit.loss} loss)" if fit.method == "robust" else "")
         + f". Report made {res.created} with piecs_bayes {res.versions.get('piecs_bayes', '?')}."
     ]
+    if getattr(res, "part_note", ""):
+        out.append(res.part_note[0].upper() + res.part_note[1:] + ".")
     if res.decisions is not None:
         verdicts = [d.verdict for d in res.decisions.decisions]
         n_comp = verdicts.count("compensate")

@@ -265,7 +265,15 @@ class BatchFit:
         return out
 
     def residual_sd(self, fid: str) -> np.ndarray:
-        return self._scatter(fid, "residual_sd", np.nan)
+        """`(P,)` the feature's own residual sd over its inliers, $\\sqrt{\\sum r^2/\\nu}$
+        (mm; NaN without residual dof or not measured), as `FeatureFit.residual_sd`."""
+        out = np.full(len(self.parts), np.nan)
+        for g_i, rows in self._index.get(fid, []):
+            g = self.groups[g_i]
+            ss, dof = _inlier_ss(g, rows)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[g.part[rows]] = np.where(dof > 0, np.sqrt(ss / np.maximum(dof, 1)), np.nan)
+        return out
 
     def steps(self, fid: str) -> np.ndarray:
         return self._scatter(fid, "steps", 0).astype(int)
@@ -716,15 +724,21 @@ def fit_profiles(
     )
 
 
+def _inlier_ss(g: _Group, rows=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+    """Per problem of a group: residual sum of squares and dof of its inliers."""
+    valid = np.arange(g.n_pad)[None, :] < g.count[rows, None]
+    inl = valid & ~np.asarray(g.arrays["outlier"][rows], dtype=bool)
+    r = np.where(inl, np.asarray(g.arrays["residuals"][rows]), 0.0)
+    return np.sum(r * r, axis=1), inl.sum(axis=1) - len(g.free)
+
+
 def _pooled(groups, n_parts: int) -> tuple[np.ndarray, np.ndarray]:
     """Per part: residual sum of squares and dof of its inliers, over its features."""
     ss, dof = np.zeros(n_parts), np.zeros(n_parts, dtype=int)
     for g in groups:
-        valid = np.arange(g.n_pad)[None, :] < g.count[:, None]
-        inl = valid & ~np.asarray(g.arrays["outlier"], dtype=bool)
-        r = np.where(inl, np.asarray(g.arrays["residuals"]), 0.0)
-        np.add.at(ss, g.part, np.sum(r * r, axis=1))
-        np.add.at(dof, g.part, inl.sum(axis=1) - len(g.free))
+        g_ss, g_dof = _inlier_ss(g)
+        np.add.at(ss, g.part, g_ss)
+        np.add.at(dof, g.part, g_dof)
     return ss, dof
 
 

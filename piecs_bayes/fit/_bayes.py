@@ -338,8 +338,24 @@ class Posterior:
         return self.log_prob.reshape(s, self.n_ensembles, self.nwalkers).transpose(1, 0, 2)
 
     def to_netcdf(self, path) -> str:
-        """Write `to_arviz()` to a netCDF file (h5netcdf); `arviz.from_netcdf` reads it."""
-        return self.to_arviz().to_netcdf(str(path))
+        """Write `to_arviz()` to a netCDF file; `arviz.from_netcdf` reads it. The file
+        appears whole or not at all (a temporary beside it, then renamed)."""
+        import os
+        import tempfile
+
+        path = os.fspath(path)
+        fd, tmp = tempfile.mkstemp(
+            dir=os.path.dirname(os.path.abspath(path)), prefix=".posterior.", suffix=".nc.tmp"
+        )
+        os.close(fd)
+        try:
+            self.to_arviz().to_netcdf(tmp)
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+        return path
 
 
 def _emcee():

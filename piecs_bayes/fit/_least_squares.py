@@ -426,7 +426,8 @@ def _statistics(
     cov = jnp.where(cov_code == _COV_OK, cov, jnp.nan)
 
     if robust:
-        resid_sd = _robust.mad_sigma(e, mask)
+        # reported, not used as a scale: an exact fit reports 0, never a placeholder
+        resid_sd = _robust.mad_sigma(e, mask, fallback=False)
     else:
         resid_sd = jnp.where(dof > 0, jnp.sqrt(rss / dof_f), jnp.nan)
     all_finite = jnp.all(jnp.isfinite(y)) & jnp.all(jnp.isfinite(e))

@@ -170,17 +170,18 @@ def psi_prime(idx, u, custom: Callable | None = None):
     return jnp.vectorize(jax.grad(psi))(u)
 
 
-def mad_sigma(e, mask):
+def mad_sigma(e, mask, fallback: bool = True):
     r"""Robust standard deviation $1.4826\,\mathrm{median}|e - \mathrm{median}(e)|$ of
-    the residuals `e` where `mask` is true. Falls back to the RMS, then to 1, when the
-    MAD is zero (an exact or nearly exact fit), so the result is always positive."""
+    the residuals `e` where `mask` is true. Falls back to the RMS when the MAD is zero
+    (an exact or nearly exact fit), then, with `fallback` (a scale for fitting must be
+    positive), to 1; without it an exact fit gives 0."""
     a = jnp.where(mask, e, jnp.nan)
     med = jnp.nanmedian(a)
     s = MAD_FACTOR * jnp.nanmedian(jnp.abs(a - med))
     n = jnp.maximum(jnp.sum(mask), 1)
     rms = jnp.sqrt(jnp.sum(jnp.where(mask, e * e, 0.0)) / n)
     good = jnp.isfinite(s) & (s > 0)
-    s = jnp.where(good, s, jnp.where(rms > 0, rms, 1.0))
+    s = jnp.where(good, s, jnp.where(rms > 0, rms, 1.0 if fallback else 0.0))
     return s
 
 

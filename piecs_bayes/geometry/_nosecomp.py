@@ -65,7 +65,7 @@ from dataclasses import dataclass
 
 from ..errors import AnalysisError, InputError
 from ._nosecomp_arc import ArcCornerComp
-from ._nosecomp_base import UniformNose, tip_offset
+from ._nosecomp_base import UniformNose, _left, tip_offset
 from ._nosecomp_extend import _extend, _offset_chain, _Seg
 
 __all__ = [
@@ -102,6 +102,88 @@ def _as_path(raw, start) -> tuple[PathMove, ...]:
     return tuple(moves)
 
 
+def axial_air(kind: str):
+    """The air side of a turned contour by its kind, for `check_comp_sides`: above an
+    external (OD) contour, below an internal (bore) one, judged on moves that run
+    mostly along Z (a face's air side depends on the step it belongs to)."""
+    if kind not in ("external", "internal"):
+        raise InputError(f"kind: got {kind!r}, expected 'external' or 'internal'", value=kind)
+    up = (1.0, 0.0) if kind == "external" else (-1.0, 0.0)
+
+    def air(m):
+        dx, dz = m.end[0] - m.start[0], m.end[1] - m.start[1]
+        return up if abs(dz) > 2.0 * abs(dx) else None
+
+    return air
+
+
+def infer_kind(program) -> str | None:
+    """``"external"``/``"internal"`` from where the tool comes from and goes to: the
+    start of each compensation run's entry move and the end of its departure move,
+    above every axial compensated move of the run (an OD contour) or below all of
+    them (a bore). None unless every such point agrees (a finish cut that starts
+    in front of the end face and leaves upward says nothing)."""
+    moves = list(program.moves)
+    votes = set()
+    for i, m in enumerate(moves):
+        if not (m.entry and m.comp is not None):
+            continue
+        run = []
+        for n in moves[i + 1 :]:
+            if n.comp is None:
+                break
+            run.append(n)
+        axial = [
+            n
+            for n in run
+            if not n.is_arc and abs(n.end[1] - n.start[1]) > 2.0 * abs(n.end[0] - n.start[0])
+        ]
+        if not axial:
+            continue
+        xs = [v for n in axial for v in (n.start[0], n.end[0])]
+        j = i + 1 + len(run)
+        for p in [m.start] + ([moves[j].end] if j < len(moves) else []):
+            if p[0] > max(xs):
+                votes.add("external")
+            elif p[0] < min(xs):
+                votes.add("internal")
+    return votes.pop() if len(votes) == 1 else None
+
+
+def check_comp_sides(program, air) -> None:
+    """Refuse G41/G42 on the side that cuts into the material.
+
+    G41 puts the nose left of travel, G42 right (drawing frame: z right, x up; a
+    negative G41.1/G42.1 diameter swaps them). `air(move)` gives the unit direction
+    of the air side of a programmed straight move (e.g. the outward normal of the
+    profile feature it cuts, or `axial_air(kind)`), or None where it cannot say.
+    A compensated move whose nose side points into the material is an `InputError`
+    naming its line. (LinuxCNC's rs274 runs such a program: it judges gouges, not
+    sides.)
+    """
+    for m in program.moves:
+        if m.comp is None or m.entry or m.is_arc or m.start == m.end:
+            continue
+        n_air = air(m)
+        if n_air is None:
+            continue
+        side = m.comp.side
+        if m.comp.diameter_mm is not None and m.comp.diameter_mm < 0:
+            side = "left" if side == "right" else "right"
+        left = _left((m.end[0] - m.start[0], m.end[1] - m.start[1]))
+        nose = left if side == "left" else (-left[0], -left[1])
+        if nose[0] * n_air[0] + nose[1] * n_air[1] < -0.5:
+            other = "G42" if side == "left" else "G41"
+            raise InputError(
+                f"{m.comp.code} (line {m.comp.line}) puts the tool nose {side} of travel, on "
+                f"the material side of the contour at line {m.line}: it would cut into the "
+                f"part; use {other}",
+                file=getattr(program, "name", None),
+                line=m.line,
+                value=m.comp.code,
+            )
+
+
 def compensated_path(
     program,
     *,
@@ -128,8 +210,13 @@ def compensated_path(
     :class:`~piecs_bayes.errors.AnalysisError` (with ``.line``) on a gouge.
     """
     if nose_radius is not None:
-        if nose_radius < 0:
-            raise InputError(f"nose_radius must be >= 0, got {nose_radius}")
+        if isinstance(nose_radius, bool) or not (
+            isinstance(nose_radius, int | float) and math.isfinite(nose_radius) and nose_radius > 0
+        ):
+            raise InputError(
+                f"nose radius must be a finite number > 0 (mm), got {nose_radius!r}",
+                value=nose_radius,
+            )
         tool_table = UniformNose(float(nose_radius))
     if start is None:
         start = tuple(program.options.get("start", (0.0, 0.0)))
@@ -175,16 +262,23 @@ def nose_compensate(
     tool_table: Mapping | None = None,
     nose_radius: float | None = None,
     start: tuple[float, float] | None = None,
+    kind: str | None = "auto",
 ) -> NoseCompResult:
     """Resolve nose-radius compensation into an equivalent program without it.
 
     Lines outside compensation stay byte-identical; compensated blocks are
     rewritten (their other words and comments kept) with the controlled
     point's moves, extra corner arcs on lines of their own. Arguments as for
-    :func:`compensated_path`.
+    :func:`compensated_path`; `kind` (``"external"``, ``"internal"``, ``"auto"``:
+    `infer_kind`, or None: not checked) says where the material is, and a G41/G42
+    on the material side is refused (`check_comp_sides`).
     """
     from ..io._gcode_write import write_path_program
 
+    if kind == "auto":
+        kind = infer_kind(program)
+    if kind is not None:
+        check_comp_sides(program, axial_air(kind))
     path = compensated_path(
         program, corner=corner, tool_table=tool_table, nose_radius=nose_radius, start=start
     )

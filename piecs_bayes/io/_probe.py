@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ._text import read_text
 
 __all__ = ["ProbeData", "read_probe_csv", "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS"]
 
@@ -77,13 +78,13 @@ class ProbeData:
         return f"ProbeData({self.file!r}, {len(self)} points, parts={len(self.parts)}, {{{body}}})"
 
 
-def _lines_without_comments(path: Path):
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        for lineno, raw in enumerate(fh, start=1):
-            stripped = raw.strip()
-            if not stripped or stripped.startswith("#"):
-                continue
-            yield lineno, raw
+def _lines_without_comments(path: Path, encoding: str):
+    text = read_text(path, encoding=encoding, what="probe file")
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        stripped = raw.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        yield lineno, raw
 
 
 def read_probe_csv(
@@ -93,6 +94,7 @@ def read_probe_csv(
     x_mode: str = "diameter",
     features: tuple[str, ...] | None = None,
     default_part: str | None = None,
+    encoding: str = "utf-8",
 ) -> ProbeData:
     """Read and validate a probe CSV file.
 
@@ -103,6 +105,9 @@ def read_probe_csv(
     - `x_mode`: ``"diameter"`` or ``"radius"``: how X is written in the file.
     - `features`: the study's feature ids; any other id is an error.
     - `default_part`: part id for rows without a ``part`` column (default: file stem).
+    - `encoding`: the file's text encoding (UTF-8 with or without a BOM by default;
+      ``"cp1252"`` for Windows/Excel exports); an invalid byte is an `InputError`
+      naming the line, column and byte.
 
     **Returns:** a :class:`ProbeData` in mm, radius X.
 
@@ -115,9 +120,7 @@ def read_probe_csv(
         raise InputError(f"unknown unit {units!r}; expected 'mm' or 'in'", file=name)
     if x_mode not in ("diameter", "radius"):
         raise InputError(f"unknown x_mode {x_mode!r}; expected 'diameter' or 'radius'", file=name)
-    if not path.is_file():
-        raise InputError("probe file not found", file=name)
-    rows = list(_lines_without_comments(path))
+    rows = list(_lines_without_comments(path, encoding))
     if not rows:
         raise InputError("probe file is empty (a header row 'feature,x,z' is required)", file=name)
     header_line, header_raw = rows[0]

@@ -10,6 +10,7 @@ and, where there is one, the feature id and the offending value. See
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +19,8 @@ from typing import Any
 
 from ..errors import InputError
 from ..geometry import MachineTransform, Profile, ProfileError, make_feature, profile_side
+from ._schema import check_keys
+from ._text import check_encoding, decode, read_bytes
 
 __all__ = [
     "Study",
@@ -126,6 +129,8 @@ class Study:
     offsets: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     errspec: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     program_settings: ProgramSettings = field(default_factory=ProgramSettings)
+    encoding: str = "utf-8"
+    plausibility: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
 
     def __repr__(self) -> str:
         return (
@@ -177,6 +182,14 @@ class _Reader:
             raise self.error(
                 f"{path}{key}", f"must be >= 0, got {val!r}", feature=feature, value=val
             )
+        return val
+
+    def integer(self, tree, key, path, default: int, *, minimum: int = 1) -> int:
+        val = tree.get(key, default)
+        if isinstance(val, bool) or not isinstance(val, int):
+            raise self.error(f"{path}{key}", f"expected an integer, got {val!r}", value=val)
+        if val < minimum:
+            raise self.error(f"{path}{key}", f"must be >= {minimum}, got {val!r}", value=val)
         return val
 
     def boolean(self, tree, key, path, default: bool) -> bool:
@@ -259,6 +272,13 @@ def _features(r: _Reader, prof: dict, scale: float, xscale: float) -> list[dict]
                     value=direction,
                 )
             spec["ccw"] = direction == "ccw"
+            if math.dist(spec["p0"], spec["p1"]) <= 1e-9 * max(1.0, abs(spec["p0"][1])):
+                raise r.error(
+                    f"{path}end",
+                    "arc start equals its end (a full circle is not a feature of a turned "
+                    "profile)",
+                    feature=fid,
+                )
             r0, r1 = math.dist(spec["p0"], spec["center"]), math.dist(spec["p1"], spec["center"])
             if r0 <= 0 or abs(r0 - r1) > 1e-6 * max(1.0, r0):
                 raise r.error(
@@ -274,11 +294,12 @@ def _features(r: _Reader, prof: dict, scale: float, xscale: float) -> list[dict]
             not isinstance(tol, list)
             or len(tol) != 2
             or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in tol)
+            or not all(math.isfinite(v) for v in tol)
             or not tol[0] < tol[1]
         ):
             raise r.error(
                 f"{path}tolerance",
-                f"expected [lower, upper] deviations with lower < upper, got {tol!r}",
+                f"expected [lower, upper] finite deviations with lower < upper, got {tol!r}",
                 feature=fid,
                 value=tol,
             )
@@ -472,6 +493,26 @@ def _job_section(r: _Reader, tree: dict, name: str, scale: float, profile: Profi
     return out
 
 
+def _parse(path: Path) -> dict:
+    """The TOML tree of a study file: UTF-8 (a BOM accepted); a file in another
+    encoding is read in the one its own ``encoding = "..."`` line names."""
+    name = str(path)
+    data = read_bytes(path, what="study file")
+    try:
+        text = decode(data, file=name)
+    except InputError:
+        m = re.search(rb'^\s*encoding\s*=\s*"([A-Za-z0-9_.-]+)"', data, flags=re.MULTILINE)
+        if m is None:
+            raise
+        text = decode(
+            data, file=name, encoding=check_encoding(m.group(1).decode("ascii"), file=name)
+        )
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML: {exc}", file=name) from None
+
+
 def load_study(path) -> Study:
     """Read and validate a study file.
 
@@ -486,15 +527,11 @@ def load_study(path) -> Study:
     """
     path = Path(path)
     name = str(path)
-    if not path.is_file():
-        raise InputError("study file not found", file=name)
-    try:
-        with open(path, "rb") as fh:
-            tree = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"not valid TOML: {exc}", file=name) from None
+    tree = _parse(path)
+    check_keys(tree, name, _JOB_KEYS)
     r = _Reader(name)
     study = r.table(tree, "study", "", required=True)
+    encoding = check_encoding(study.get("encoding", "utf-8"), file=name)
     units = r.choice(study, "units", "study.", ("mm", "in"), "mm")
     scale = _MM_PER[units]
 
@@ -546,17 +583,15 @@ def load_study(path) -> Study:
         ),
         scale=(r.number(ft, "scale", "fit.", positive=True) * scale) if "scale" in ft else None,
         known_sigma=r.boolean(ft, "known_sigma", "fit.", False),
-        min_points_line=int(r.number(ft, "min_points_line", "fit.", 3.0, positive=True)),
-        min_points_arc=int(r.number(ft, "min_points_arc", "fit.", 4.0, positive=True)),
+        min_points_line=r.integer(ft, "min_points_line", "fit.", 3),
+        min_points_arc=r.integer(ft, "min_points_arc", "fit.", 4),
         likelihood=r.choice(ft, "likelihood", "fit.", ("gaussian", "student_t"), "gaussian"),
         nu=r.number(ft, "nu", "fit.", 4.0, positive=True),
-        bayes_steps=int(r.number(ft, "bayes_steps", "fit.", 6000.0, positive=True)),
+        bayes_steps=r.integer(ft, "bayes_steps", "fit.", 6000),
         bayes_walkers=(
-            int(r.number(ft, "bayes_walkers", "fit.", positive=True))
-            if "bayes_walkers" in ft
-            else None
+            r.integer(ft, "bayes_walkers", "fit.", 0) if "bayes_walkers" in ft else None
         ),
-        bayes_ensembles=int(r.number(ft, "bayes_ensembles", "fit.", 4.0, positive=True)),
+        bayes_ensembles=r.integer(ft, "bayes_ensembles", "fit.", 4),
     )
     for key in ("fix", "free_transform"):
         val = ft.get(key, [])
@@ -628,8 +663,20 @@ def load_study(path) -> Study:
         compensation=comp,
         sections=MappingProxyType(extra),
         program_settings=program_settings,
+        encoding=encoding,
+        plausibility=MappingProxyType(_plausibility(r, r.table(tree, "plausibility", ""), scale)),
         **job,
     )
+
+
+def _plausibility(r: _Reader, tree: dict, scale: float) -> dict:
+    """`[plausibility]`: limits of the checks made before fitting (docs/formats.md)."""
+    out: dict[str, Any] = {}
+    for key in ("max_distance", "max_outside"):
+        if key in tree:
+            out[key] = r.number(tree, key, "plausibility.", positive=True) * scale
+    out["duplicates"] = r.choice(tree, "duplicates", "plausibility.", ("drop", "error"), "drop")
+    return out
 
 
 def _program_settings(r: _Reader, tree: dict, scale: float, profile, base: Path) -> ProgramSettings:

@@ -1,0 +1,54 @@
+"""argparse types for the command line: every number a person types is checked here,
+with a message that says what was expected (argparse exits with code 2)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+__all__ = ["gain", "nonneg_int", "positive_int", "positive_mm"]
+
+
+def _number(text: str, what: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+
+
+def positive_mm(text: str) -> float:
+    """A finite length > 0 (mm)."""
+    v = _number(text, "a length in mm")
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0 (mm), got {text!r}")
+    return v
+
+
+def gain(text: str) -> float:
+    """A compensation gain in [0, 1] (1 = full PIECS mirroring)."""
+    v = _number(text, "a gain in [0, 1]")
+    if not (math.isfinite(v) and 0.0 <= v <= 1.0):
+        raise argparse.ArgumentTypeError(
+            f"expected a gain in [0, 1] (1 = full mirroring, 0 = none), got {text!r}"
+        )
+    return v
+
+
+def _integer(text: str, low: int) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {text!r}") from None
+    if v < low:
+        raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {text!r}")
+    return v
+
+
+def positive_int(text: str) -> int:
+    """An integer >= 1."""
+    return _integer(text, 1)
+
+
+def nonneg_int(text: str) -> int:
+    """An integer >= 0 (a random seed)."""
+    return _integer(text, 0)

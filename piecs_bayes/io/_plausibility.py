@@ -1,0 +1,205 @@
+"""Plausibility of probe points before any fit: no number from data that could not be right.
+
+A fit always returns numbers, even for points a metre off their feature, for a
+file read with the wrong X mode or units, or for a profile declared external
+that was probed as a bore. So before fitting, every point is checked against
+its nominal feature (part frame, ball centre one ball radius outside the
+surface):
+
+- **distance**: the ball centre's distance from where it should be,
+  $|d - r_b|$, must not exceed `max_distance` (default: 3 x (`max_correction` +
+  the feature's largest tolerance), at least 0.5 mm so that a chip under the
+  stylus stays an outlier for the robust fit): a correction larger than
+  `max_correction` is refused anyway, so a point far beyond it is an error of
+  setup, not a deviation;
+- **position along the feature**: a point may lie at most `max_outside`
+  (default: the same limit) beyond either end of its feature;
+- **duplicates**: a trigger repeated with identical coordinates (a file
+  written twice, rows copied) would count twice and shrink every uncertainty
+  by $\\sqrt 2$: `duplicates = "drop"` (default) keeps the first and warns,
+  `"error"` refuses the file.
+
+A point beyond a limit is an `InputError` naming file, line, feature, the
+distance and the likely cause, found by trying the usual setup mistakes on
+every point of the part (X read as a diameter or a radius, inch and mm, the
+Z work offset's sign, the profile's side of the material, the arc's
+direction) and reporting the one that makes the points plausible.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import machine_to_part
+
+__all__ = ["PlausibilityWarning", "check_probe_data", "drop_duplicates", "feature_limits"]
+
+
+#: the smallest default distance limit (mm): a chip under the stylus (0.1-0.3 mm) is an
+#: outlier for the robust fit, not an error; setup mistakes move points by a ball
+#: radius or more (1-2 mm), a diameter read as a radius by the radius itself
+FLOOR_MM = 0.5
+
+
+class PlausibilityWarning(UserWarning):
+    """Probe data that were used, but not as written (duplicates dropped)."""
+
+
+def feature_limits(profile, max_correction: float, settings=None) -> dict[str, tuple]:
+    """`{feature id: (max_distance, max_outside)}` in mm (see the module doc)."""
+    settings = dict(settings or {})
+    out = {}
+    for f in profile.features:
+        d = settings.get("max_distance")
+        if d is None:
+            d = max(3.0 * (max_correction + max(abs(t) for t in f.tolerance)), FLOOR_MM)
+        out[f.id] = (float(d), float(settings.get("max_outside", d)))
+    return out
+
+
+def _measure(f, pts: np.ndarray, ball_radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per point: distance of the ball centre from its nominal place (signed: + outside),
+    and how far (mm) it lies beyond the ends of the feature along it."""
+    if f.kind == "line":
+        p0, p1 = np.asarray(f.p0), np.asarray(f.p1)
+        u = (p1 - p0) / f.length
+        n = f.side * np.array([u[1], -u[0]])  # side * left normal of travel (`left_normal`)
+        d = (pts - (p0 + p1) / 2) @ n
+        s = (pts - p0) @ u
+        beyond = np.maximum(np.maximum(-s, s - f.length), 0.0)
+        return d - ball_radius, beyond
+    c = np.asarray(f.center)
+    v = pts - c
+    rho = np.hypot(v[:, 0], v[:, 1])
+    d = f.sense * (rho - f.radius)
+    a0, sweep = f._angles()
+    ang = np.arctan2(v[:, 0], v[:, 1])
+    delta = np.mod((ang - a0) * math.copysign(1.0, sweep), 2 * math.pi)
+    span = abs(sweep)
+    out = np.where(delta > span, np.minimum(delta - span, 2 * math.pi - delta), 0.0)
+    return d - ball_radius, out * f.radius
+
+
+def _violations(profile, feature, pts, ball_radius, limits):
+    """Boolean mask of implausible points and the (distance, beyond) arrays."""
+    dist = np.zeros(len(pts))
+    beyond = np.zeros(len(pts))
+    bad = np.zeros(len(pts), dtype=bool)
+    for f in profile.features:
+        m = feature == f.id
+        if not m.any():
+            continue
+        d, b = _measure(f, pts[m], ball_radius)
+        lim_d, lim_o = limits[f.id]
+        dist[m], beyond[m] = d, b
+        bad[m] = (np.abs(d) > lim_d) | (b > lim_o) | ~np.isfinite(d)
+    return bad, dist, beyond
+
+
+def _likely_cause(profile, feature, machine, transform, ball_radius, limits, dist) -> str:
+    """The setup mistake that explains the data, tried on every point of the part."""
+    t = transform
+    base = np.asarray(machine_to_part(machine, t))
+    candidates = [
+        ("X is written as a radius, not a diameter: check [probe] x_mode", machine * [2.0, 1.0]),
+        ("X is written as a diameter, not a radius: check [probe] x_mode", machine * [0.5, 1.0]),
+        ("the file is in inches: check [study] units", machine * 25.4),
+        ("the file is in mm: check [study] units", machine / 25.4),
+    ]
+    for text, m in candidates:
+        pts = np.asarray(machine_to_part(m, t))
+        if not _violations(profile, feature, pts, ball_radius, limits)[0].any():
+            return text
+    if t.z_offset != 0.0:
+        pts = base + [0.0, 2.0 * t.z_offset]
+        if not _violations(profile, feature, pts, ball_radius, limits)[0].any():
+            return "the Z work offset has the wrong sign: check [machine] z_offset"
+    inside = np.abs(dist + 2.0 * ball_radius) <= 0.5 * ball_radius  # centres inside
+    if np.mean(inside) > 0.5:
+        return (
+            "the ball centres lie on the material side of the profile: check [profile] kind "
+            "(external for a shaft, internal for a bore)"
+        )
+    for f in profile.features:
+        m = feature == f.id
+        if f.kind == "arc" and m.any() and np.median(np.abs(dist[m] + 2 * ball_radius)) < 0.05:
+            return f"the ball centres lie on the material side of arc {f.id!r}: check its direction"
+    return (
+        "a chip or dirt under the stylus, a point filed under the wrong feature, or a wrong "
+        "work offset; remove the line or raise [plausibility] max_distance"
+    )
+
+
+def drop_duplicates(probe, *, policy: str = "drop"):
+    """`probe` without repeated triggers (same part, feature and coordinates)."""
+    key = np.rec.fromarrays([probe.part, probe.feature, probe.points[:, 0], probe.points[:, 1]])
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    dup = np.ones(len(probe), dtype=bool)
+    dup[first] = False
+    if not dup.any():
+        return probe
+    i = int(np.flatnonzero(dup)[0])
+    j = int(first[inverse.reshape(-1)[i]])
+    files = probe.file.split(",")
+    where = f"line {int(probe.lines[i])} repeats line {int(probe.lines[j])}"
+    fid = str(probe.feature[i])
+    if policy == "error":
+        raise InputError(
+            f"{int(dup.sum())} repeated trigger(s) ({where}, feature {fid!r}): a "
+            "trigger counted twice shrinks every uncertainty; remove them or set "
+            '[plausibility] duplicates = "drop"',
+            file=files[0] if len(files) == 1 else probe.file,
+            feature=fid,
+        )
+    warnings.warn(
+        f"{probe.file}: dropped {int(dup.sum())} repeated trigger(s) with identical coordinates "
+        f"({where}, feature {fid!r}); each counts once",
+        PlausibilityWarning,
+        stacklevel=2,
+    )
+    return probe.select(~dup)
+
+
+def check_probe_data(probe, profile, *, transform, ball_radius, max_correction, settings=None):
+    """Duplicates handled (see `drop_duplicates`), then every point checked (module doc).
+
+    **Returns:** the probe data to fit. **Raises:** `InputError` for an implausible point.
+    """
+    settings = dict(settings or {})
+    probe = drop_duplicates(probe, policy=settings.get("duplicates", "drop"))
+    limits = feature_limits(profile, max_correction, settings)
+    pts = np.asarray(machine_to_part(probe.points, transform))
+    bad, dist, beyond = _violations(profile, probe.feature, pts, ball_radius, limits)
+    if not bad.any():
+        return probe
+    # the worst offender, located, with the likely cause over its part
+    score = np.where(bad, np.abs(dist) + beyond, -1.0)
+    i = int(np.argmax(score))
+    part = probe.part[i]
+    sel = probe.part == part
+    cause = _likely_cause(
+        profile, probe.feature[sel], probe.points[sel], transform, ball_radius, limits, dist[sel]
+    )
+    fid = str(probe.feature[i])
+    lim_d, lim_o = limits[fid]
+    if abs(dist[i]) > lim_d or not np.isfinite(dist[i]):
+        what = (
+            f"ball centre {dist[i]:+.4g} mm from its nominal place (limit {lim_d:.3g} mm: "
+            "the larger of 0.5 mm and 3 x (max_correction + tolerance))"
+        )
+    else:
+        what = f"point {beyond[i]:.4g} mm beyond the end of the feature (limit {lim_o:.3g} mm)"
+    files = probe.file.split(",")
+    n_bad, n_part = int(bad[sel].sum()), int(sel.sum())
+    raise InputError(
+        f"implausible probe point of part {str(part)!r}: {what}; {n_bad} of {n_part} points "
+        f"of the part are beyond the limits; likely cause: {cause}",
+        file=files[0] if len(files) == 1 else probe.file,
+        line=int(probe.lines[i]),
+        feature=fid,
+        value=float(dist[i]),
+    )

@@ -1,0 +1,80 @@
+"""The study file's schema: every section and key it may hold, in one place.
+
+`check_keys` walks a parsed study (TOML tree) before any value is read and
+refuses an unknown section or key with its path and the nearest valid name
+(``compensation.max_corection: unknown key; did you mean 'max_correction'?``),
+so that a typo never silently falls back to a default. The values themselves
+are read and checked (type, finiteness, range) by `_study.load_study` and the
+job sections' table `_JOB_KEYS`; this module only knows the names.
+"""
+
+from __future__ import annotations
+
+import difflib
+
+from ..errors import InputError
+
+__all__ = ["SECTIONS", "check_keys", "nearest"]
+
+#: section -> its keys; "profile.feature" is each [[profile.feature]] table.
+#: `uncertainty` holds one table per source (names in `_study.KNOWN_SOURCES`) whose
+#: keys the prior reader checks; the job sections' keys come from `_study._JOB_KEYS`.
+SECTIONS: dict[str, tuple[str, ...]] = {
+    "study": ("name", "units", "probe_files", "part_program", "encoding"),
+    "profile": ("kind", "x_mode", "tangent_tolerance_deg", "feature"),
+    "profile.feature": ("id", "type", "start", "end", "center", "direction", "tolerance"),
+    "probe": (
+        "ball_radius", "ball_radius_u", "repeatability", "repeatability_dof", "x_mode",
+        "pretravel",
+    ),
+    "machine": ("x_centre", "z_offset", "scale_x", "scale_z", "rotation"),
+    "uncertainty": (),  # source names: checked with the sources
+    "fit": (
+        "method", "loss", "scale", "known_sigma", "min_points_line", "min_points_arc", "fix",
+        "free_transform", "likelihood", "nu", "bayes_steps", "bayes_walkers", "bayes_ensembles",
+    ),
+    "compensation": ("gain", "max_correction"),
+    "program": ("nose_radius", "tool_table", "mapping", "tolerance"),
+    "plausibility": ("max_distance", "max_outside", "duplicates"),
+}  # fmt: skip
+
+
+def nearest(name: str, options) -> str:
+    """`"; did you mean 'x'?"` for the closest option, or `""`."""
+    best = difflib.get_close_matches(str(name), list(options), n=1, cutoff=0.6)
+    return f"; did you mean {best[0]!r}?" if best else ""
+
+
+def _unknown(file, path, key, options, value=None) -> InputError:
+    opts = ", ".join(options)
+    return InputError(
+        f"{path}{key}: unknown {'section' if not path else 'key'} {key!r}"
+        f"{nearest(key, options)} (expected one of {opts})",
+        file=file,
+        value=value,
+    )
+
+
+def check_keys(tree: dict, file: str, job_keys: dict[str, dict]) -> None:
+    """Refuse unknown sections and keys anywhere in the study tree (see module doc)."""
+    sections = {**SECTIONS, **{k: tuple(v) for k, v in job_keys.items()}}
+    sections.pop("profile.feature")
+    for name, sec in tree.items():
+        if name not in sections:
+            raise _unknown(file, "", name, sections)
+        if not isinstance(sec, dict):
+            raise InputError(f"{name}: expected a table [{name}], got {sec!r}", file=file)
+        if name == "uncertainty":
+            continue
+        keys = sections[name]
+        for key in sec:
+            if key not in keys:
+                raise _unknown(file, f"{name}.", key, keys, sec[key])
+    feats = tree.get("profile", {}).get("feature", [])
+    if isinstance(feats, list):
+        keys = SECTIONS["profile.feature"]
+        for i, f in enumerate(feats):
+            if isinstance(f, dict):
+                for key in f:
+                    if key not in keys:
+                        raise _unknown(file, f"profile.feature[{i}].", key, keys, f[key])

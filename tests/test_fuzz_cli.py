@@ -1,0 +1,352 @@
+"""Careless and hostile inputs against the command line, in-process.
+
+Hypothesis mutates the shipped demo study, its probe file and part programs
+(lines dropped, doubled or truncated, keys misspelt, values replaced by other
+types, NaN, infinities, huge numbers, non-UTF-8 bytes, a BOM) and runs
+`piecs-bayes fit` / `gcode nose-comp` / `gcode check` on them. Every run must:
+
+- exit with 0, 1 or 2 (never a traceback: `main` turns everything into one line);
+- on exit 2, name the file the problem is in;
+- leave every input byte-for-byte unchanged;
+- leave no temporary file behind.
+
+Plus one case per class of the hardening issue (typos, implausible data,
+unsafe G-code, file-system faults, signals), and a SIGTERM in the middle of a
+run that must leave no partial output.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from piecs_bayes.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DEMO = ROOT / "data" / "demo"
+GCODE = ROOT / "tests" / "data" / "gcode"
+
+FUZZ = settings(
+    max_examples=60,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+    derandomize=True,
+)
+
+TOKENS = [
+    "0", "-1", "1e300", "-1e300", "nan", "inf", "-inf", "true", "false", '"false"', '"in"',
+    '"mm"', '""', "[]", "[1]", "[1, 2, 3]", '"x"', "{}", "1.5", "0.0", "99999999999",
+]  # fmt: skip
+CELLS = ["", "nan", "inf", "1e300", "-1e300", "abc", "0", "-0", "12,3", "dia_99", "Ø", '"']
+
+
+def _digest(folder: Path) -> dict[str, str]:
+    return {
+        p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in folder.iterdir() if p.is_file()
+    }
+
+
+def _run(capsys, argv) -> tuple[int, str]:
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as exc:  # argparse: usage errors exit 2
+        rc = exc.code
+    out = capsys.readouterr()
+    return rc, out.out + out.err
+
+
+def _check(rc, text, inputs: Path, before, names, out: Path | None):
+    assert rc in (0, 1, 2), (rc, text)
+    assert "Traceback" not in text, text
+    if rc == 2:
+        assert any(n in text for n in names), text
+    assert _digest(inputs) == before, "an input changed"
+    if out is not None and out.exists():
+        assert not [p for p in out.rglob("*") if p.name.endswith(".tmp")], "a temporary was left"
+
+
+def _mutate_lines(data: bytes, ops) -> bytes:
+    lines = data.split(b"\n")
+    for kind, pos, token in ops:
+        if not lines:
+            break
+        i = pos % len(lines)
+        if kind == "drop":
+            del lines[i]
+        elif kind == "double":
+            lines.insert(i, lines[i])
+        elif kind == "truncate":
+            lines[i] = lines[i][: len(lines[i]) // 2]
+        elif kind == "value" and b"=" in lines[i]:
+            key = lines[i].split(b"=", 1)[0]
+            lines[i] = key + b"= " + token.encode()
+        elif kind == "key" and b"=" in lines[i]:
+            key, val = lines[i].split(b"=", 1)
+            key = key.strip()
+            lines[i] = (key[:-1] if len(key) > 1 else key + b"x") + b" =" + val
+        elif kind == "bytes":
+            lines[i] = lines[i] + b" \xd8\xb5\xb1"
+        elif kind == "cell" and b"," in lines[i]:
+            cells = lines[i].split(b",")
+            cells[pos % len(cells)] = token.encode()
+            lines[i] = b",".join(cells)
+    return b"\n".join(lines)
+
+
+OPS = st.lists(
+    st.tuples(
+        st.sampled_from(["drop", "double", "truncate", "value", "key", "bytes", "cell"]),
+        st.integers(0, 200),
+        st.sampled_from(TOKENS + CELLS),
+    ),
+    min_size=1,
+    max_size=3,
+)
+
+
+@pytest.fixture(scope="module")
+def demo_copy():
+    tmp = Path(tempfile.mkdtemp(prefix="piecs-fuzz-"))
+    for p in DEMO.iterdir():
+        shutil.copy(p, tmp / p.name)
+    yield tmp
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+@FUZZ
+@given(ops=OPS, bom=st.booleans())
+def test_fuzzed_study_files(capsys, demo_copy, ops, bom):
+    study = demo_copy / "fuzz_study.toml"
+    data = _mutate_lines((DEMO / "study.toml").read_bytes(), ops)
+    study.write_bytes((b"\xef\xbb\xbf" if bom else b"") + data)
+    before = _digest(demo_copy)
+    out = demo_copy / "out_study"
+    rc, text = _run(capsys, ["fit", study, "--out", out, "-q"])
+    _check(rc, text, demo_copy, before, ["fuzz_study.toml", "probe_part01.csv"], out)
+
+
+@FUZZ
+@given(ops=OPS)
+def test_fuzzed_probe_files(capsys, demo_copy, ops):
+    probe = demo_copy / "fuzz_probe.csv"
+    probe.write_bytes(_mutate_lines((DEMO / "probe_part01.csv").read_bytes(), ops))
+    study = demo_copy / "fuzz_probe_study.toml"
+    study.write_text(
+        (DEMO / "study.toml").read_text().replace('"probe_part01.csv"', '"fuzz_probe.csv"')
+    )
+    before = _digest(demo_copy)
+    out = demo_copy / "out_probe"
+    rc, text = _run(capsys, ["fit", study, "--out", out, "-q"])
+    _check(rc, text, demo_copy, before, ["fuzz_probe.csv", "fuzz_probe_study.toml"], out)
+
+
+PROGRAMS = sorted(GCODE.glob("0*.ngc"))
+
+
+@FUZZ
+@given(
+    ops=st.lists(
+        st.tuples(
+            st.sampled_from(["drop", "double", "truncate", "bytes", "word"]),
+            st.integers(0, 200),
+            st.sampled_from(["X1e300", "Znan", "G41", "G42", "G40", "R0", "Xinf", "G2", "F-1"]),
+        ),
+        min_size=1,
+        max_size=3,
+    ),
+    which=st.integers(0, len(PROGRAMS) - 1),
+    action=st.sampled_from(["nose-comp", "check"]),
+    radius=st.sampled_from(["0.4", "0.8", "2.0"]),
+)
+def test_fuzzed_programs(capsys, tmp_path_factory, ops, which, action, radius):
+    folder = tmp_path_factory.mktemp("gcode")
+    src = folder / "fuzz.ngc"
+    data = PROGRAMS[which].read_bytes()
+    muts = [(k if k != "word" else "cell", p, t) for k, p, t in ops]
+    lines = data.split(b"\n")
+    for kind, pos, token in muts:
+        i = pos % max(len(lines), 1)
+        if kind == "cell" and lines:
+            lines[i] = lines[i] + b" " + token.encode()
+        else:
+            lines = _mutate_lines(b"\n".join(lines), [(kind, pos, token)]).split(b"\n")
+    src.write_bytes(b"\n".join(lines))
+    before = _digest(folder)
+    argv = ["gcode", action, src, "--nose-radius", radius]
+    if action == "nose-comp":
+        argv += ["-o", folder / "out" / "out.ngc"]
+    rc, text = _run(capsys, argv)
+    _check(rc, text, folder, {k: v for k, v in before.items()}, ["fuzz.ngc"], folder)
+
+
+# --------------------------------------------------------------------------- the classes
+
+
+def _study_variant(folder: Path, name: str, old: str, new: str) -> Path:
+    text = (DEMO / "study.toml").read_text()
+    assert old in text, old
+    p = folder / name
+    p.write_text(text.replace(old, new, 1))
+    return p
+
+
+CLASSES = [
+    ("unit_typo", 'units = "mm"', 'unit = "in"', 2, "did you mean 'units'"),
+    ("key_typo", "max_correction = 0.1", "max_corection = 0.01", 2, "did you mean 'max_correction'"),
+    ("section_typo", "[compensation]", "[compensaton]", 2, "did you mean 'compensation'"),
+    ("string_bool", 'method = "robust"', 'method = "robust"\nknown_sigma = "false"', 2, "true or false"),
+    ("inf_tolerance", "tolerance = [-0.0100, 0.0100]", "tolerance = [-inf, 0.0100]", 2, "finite"),
+    ("x_mode", 'x_mode = "diameter"         # the probe', 'x_mode = "radius"         # the probe', 2, "x_mode"),
+    ("z_sign", "z_offset = -312.4873", "z_offset = 312.4873", 2, "z_offset"),
+    ("kind", 'kind = "external"', 'kind = "internal"', 2, "[profile] kind"),
+    ("arc_dir", 'direction = "cw"', 'direction = "ccw"', 2, "direction"),
+    ("arc_closed", "end = [36.0000, -60.0000]\ncenter", "end = [30.0000, -57.0000]\ncenter", 2, "full circle"),
+    ("twice", 'probe_files = ["probe_part01.csv"]', 'probe_files = ["probe_part01.csv", "probe_part01.csv"]', 2, "listed twice"),
+    ("bad_encoding", 'name = "Demo stepped shaft"', 'name = "Demo stepped shaft"\nencoding = "klingon"', 2, "unknown encoding"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("case", CLASSES, ids=[c[0] for c in CLASSES])
+def test_each_class_gets_its_one_line_message(capsys, demo_copy, case):
+    name, old, new, code, expect = case
+    study = _study_variant(demo_copy, f"class_{name}.toml", old, new)
+    before = _digest(demo_copy)
+    rc, text = _run(capsys, ["fit", study, "--out", demo_copy / f"out_{name}", "-q"])
+    _check(rc, text, demo_copy, before, [study.name, "probe_part01.csv"], None)
+    assert rc == code and expect in text, text
+    assert len(text.strip().splitlines()) == 1, text
+
+
+def test_probe_classes(capsys, demo_copy):
+    lines = (DEMO / "probe_part01.csv").read_text().splitlines()
+    head = next(i for i, x in enumerate(lines) if x.startswith("feature"))
+    cases = {
+        "far": lambda r: [r[0], str(float(r[1]) + 1000.0), *r[2:]],
+        "huge": lambda r: [r[0], "1e300", *r[2:]],
+    }
+    for name, edit in cases.items():
+        rows = list(lines)
+        rows[head + 2] = ",".join(edit(rows[head + 2].split(",")))
+        (demo_copy / f"p_{name}.csv").write_text("\n".join(rows) + "\n")
+        study = _study_variant(demo_copy, f"s_{name}.toml", "probe_part01.csv", f"p_{name}.csv")
+        rc, text = _run(capsys, ["fit", study, "-q", "--out", demo_copy / f"o_{name}"])
+        assert rc == 2 and f"p_{name}.csv:{head + 3}" in text and "implausible" in text, text
+    # every row twice: used once, said so
+    rows = lines[: head + 1] + [r for r in lines[head + 1 :] for _ in (0, 1)]
+    (demo_copy / "p_dup.csv").write_text("\n".join(rows) + "\n")
+    study = _study_variant(demo_copy, "s_dup.toml", "probe_part01.csv", "p_dup.csv")
+    rc, text = _run(capsys, ["fit", study, "-q", "--out", demo_copy / "o_dup"])
+    assert rc == 0 and "warning: " in text and "repeated trigger" in text, text
+    # cp1252 bytes: named; then read with the encoding setting
+    raw = ("# Ø 24 ± 0.01, µm\n" + "\n".join(lines) + "\n").encode("cp1252")
+    (demo_copy / "p_cp.csv").write_bytes(raw)
+    study = _study_variant(demo_copy, "s_cp.toml", "probe_part01.csv", "p_cp.csv")
+    rc, text = _run(capsys, ["fit", study, "-q", "--out", demo_copy / "o_cp"])
+    assert rc == 2 and "p_cp.csv:1" in text and "byte 0xd8 at line 1, column 3" in text, text
+    ok = _study_variant(
+        demo_copy, "s_cp_ok.toml", 'units = "mm"', 'units = "mm"\nencoding = "cp1252"'
+    )
+    ok.write_text(ok.read_text().replace("probe_part01.csv", "p_cp.csv"))
+    rc, text = _run(capsys, ["fit", ok, "-q", "--out", demo_copy / "o_cp_ok"])
+    assert rc == 0, text
+    # two parts in one file, no --part: said, not guessed
+    multi = lines[:head] + ["part," + lines[head]]
+    multi += ["a," + r for r in lines[head + 1 :]] + ["b," + r for r in lines[head + 1 :]]
+    (demo_copy / "p_multi.csv").write_text("\n".join(multi) + "\n")
+    study = _study_variant(demo_copy, "s_multi.toml", "probe_part01.csv", "p_multi.csv")
+    rc, text = _run(capsys, ["fit", study, "-q", "--out", demo_copy / "o_multi"])
+    assert rc == 2 and "2 parts (a, b)" in text and "--part" in text, text
+    rc, text = _run(capsys, ["fit", study, "-q", "--part", "b", "--out", demo_copy / "o_multi"])
+    assert rc == 0, text
+
+
+def test_command_line_numbers_and_file_system_faults(capsys, demo_copy):
+    study = demo_copy / "study.toml"
+    for argv, expect in [
+        (["compensate", study, "--gain", "5"], "expected a gain in [0, 1]"),
+        (["compensate", study, "--gain", "nan"], "expected a gain in [0, 1]"),
+        (["simulate", "batch", "--parts", "0"], "expected an integer >= 1"),
+        (["simulate", "batch", "--parts", "-3"], "expected an integer >= 1"),
+        (["gcode", "nose-comp", demo_copy / "finish.ngc", "--nose-radius", "nan", "-o", demo_copy / "x.ngc"], "finite number > 0"),
+        (["gcode", "nose-comp", demo_copy / "finish.ngc", "--nose-radius", "0", "-o", demo_copy / "x.ngc"], "finite number > 0"),
+    ]:  # fmt: skip
+        rc, text = _run(capsys, argv)
+        assert rc == 2 and expect in text, (argv, text)
+    (demo_copy / "a_file").write_text("x")
+    for argv, expect in [
+        (["fit", study, "-q", "--out", demo_copy / "a_file"], "a_file: exists and is not a folder"),
+        (["fit", study, "-q", "--out", demo_copy / "a_file" / "sub"], "a parent of this path is a file"),
+        (["fit", demo_copy, "-q"], "is a folder, not a file"),
+        (["fit", demo_copy / "missing.toml", "-q"], "study file not found"),
+        (["gcode", "nose-comp", demo_copy / "finish.ngc", "--nose-radius", "0.4", "-o", demo_copy], "is a folder"),
+    ]:  # fmt: skip
+        rc, text = _run(capsys, argv)
+        assert rc == 2 and expect in text and "Traceback" not in text, (argv, text)
+
+
+def test_gcode_on_the_material_side_is_refused(capsys, demo_copy, tmp_path):
+    text = (DEMO / "finish.ngc").read_text()
+    wrong = tmp_path / "g41.ngc"
+    wrong.write_text(text.replace("G42 G1", "G41 G1"))
+    argv = ["gcode", "nose-comp", wrong, "--nose-radius", "0.4", "-o", tmp_path / "o.ngc"]
+    rc, out = _run(capsys, [*argv, "--kind", "external"])
+    assert rc == 2 and "g41.ngc:9" in out and "use G42" in out, out
+    assert not (tmp_path / "o.ngc").exists()
+    rc, out = _run(capsys, ["gcode", "nose-comp", DEMO / "finish.ngc", "--nose-radius", "0.4",
+                            "--kind", "external", "-o", tmp_path / "o.ngc"])  # fmt: skip
+    assert rc == 0, out
+    # with a study, the features say where the air is: no flag needed
+    shutil.copy(wrong, demo_copy / "g41.ngc")
+    study = _study_variant(demo_copy, "s_g41.toml", "finish.ngc", "g41.ngc")
+    rc, out = _run(capsys, ["compensate", study, "-q", "--out", tmp_path / "c",
+                            "--program-out", tmp_path / "c" / "adj.ngc"])  # fmt: skip
+    assert rc == 2 and "g41.ngc:8" in out and "cut into the part" in out, out
+    assert not (tmp_path / "c" / "adj.ngc").exists()
+
+
+def test_debug_shows_the_traceback(capsys, demo_copy):
+    rc, text = _run(capsys, ["--debug", "fit", demo_copy / "missing.toml", "-q"])
+    assert rc == 2 and "Traceback" in text and "study file not found" in text
+
+
+def _start(argv, cwd) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "piecs_bayes.cli", *map(str, argv)],
+        cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "JAX_PLATFORMS": "cpu", "MPLBACKEND": "Agg"},
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_signal_leaves_no_partial_output(tmp_path, sig, code):
+    for p in DEMO.iterdir():
+        shutil.copy(p, tmp_path / p.name)
+    out = tmp_path / "out"
+    before = _digest(tmp_path)
+    proc = _start(
+        ["fit", "study.toml", "--method", "bayes", "--steps", "200000", "-q", "--out", out],
+        tmp_path,
+    )
+    deadline = time.time() + 120
+    while time.time() < deadline and not (out / "fit.json").exists():  # sampling has begun
+        time.sleep(0.2)
+    assert (out / "fit.json").exists(), proc.communicate()
+    time.sleep(1.0)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=180)
+    assert proc.returncode == code, err
+    assert "Traceback" not in err and ("terminated" in err or "interrupted" in err), err
+    assert not [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]
+    assert not (out / "posterior.nc").exists()  # never half-written
+    assert _digest(tmp_path) == before
