@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import time
 
+from piecs_bayes.calibration import coverage_check
 from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
@@ -26,7 +27,6 @@ from piecs_bayes.simulate import (
     demo_profile,
     process_deviations,
 )
-from piecs_bayes.uncertainty import coverage_check
 
 SOURCES = {"ball_radius": 0.0005, "x_centre": 0.001, "scale_z": 5e-6}
 SPARSE = {
@@ -47,17 +47,21 @@ def main(argv=None) -> int:
     ap.add_argument("--no-bayes", action="store_true", help="linearised route only")
     ap.add_argument("--steps", type=int, default=3000, help="MCMC steps per part")
     ap.add_argument("--walkers", type=int, default=64, help="walkers of the one ensemble per part")
+    ap.add_argument(
+        "--sigma", choices=("both", "pooled", "known"), default="both", help="which sigma rules"
+    )
     args = ap.parse_args(argv)
     profile = demo_profile()
     truth = process_deviations(profile, DEMO_ERRORS)
     summary = []
     for name, (points, margin) in CONFIGS.items():
-        for known in (False, True):
+        for known in {"both": (False, True), "pooled": (False,), "known": (True,)}[args.sigma]:
             t0 = time.perf_counter()
             res = coverage_check(
                 profile, truth, n_parts=args.parts, points=points, margin=margin,
                 transform=DEMO_TRANSFORM, source_sd=SOURCES, known_sigma=known,
-                bayes=not args.no_bayes, bayes_steps=args.steps, bayes_walkers=args.walkers, seed=2026,
+                bayes=not args.no_bayes, bayes_steps=args.steps, bayes_walkers=args.walkers,
+                seed=2026,
             )  # fmt: skip
             wall = time.perf_counter() - t0
             label = f"{name}, {'known sigma' if known else 'pooled sigma (default)'}"

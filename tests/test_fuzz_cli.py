@@ -325,6 +325,9 @@ def _start(argv, cwd) -> subprocess.Popen:
         [sys.executable, "-m", "piecs_bayes.cli", *map(str, argv)],
         cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "JAX_PLATFORMS": "cpu", "MPLBACKEND": "Agg"},
+        # a test runner started in the background passes SIGINT on as ignored: reset it,
+        # as a terminal would have it
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
 
 
@@ -338,13 +341,18 @@ def test_a_signal_leaves_no_partial_output(tmp_path, sig, code):
         ["fit", "study.toml", "--method", "bayes", "--steps", "200000", "-q", "--out", out],
         tmp_path,
     )
-    deadline = time.time() + 120
-    while time.time() < deadline and not (out / "fit.json").exists():  # sampling has begun
-        time.sleep(0.2)
-    assert (out / "fit.json").exists(), proc.communicate()
-    time.sleep(1.0)
-    proc.send_signal(sig)
-    _, err = proc.communicate(timeout=180)
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline and not (out / "fit.json").exists():  # sampling has begun
+            time.sleep(0.2)
+        assert (out / "fit.json").exists()
+        time.sleep(1.0)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=180)
+    finally:  # never leave the child (or its pipes) behind
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
     assert proc.returncode == code, err
     assert "Traceback" not in err and ("terminated" in err or "interrupted" in err), err
     assert not [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]

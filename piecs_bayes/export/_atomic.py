@@ -35,22 +35,12 @@ def _umask() -> int:
 
 def write_bytes_atomic(path, data: bytes, *, protect=None) -> Path:
     """Write ``data`` to ``path`` atomically (parents created). Returns the path."""
-    path = Path(path)
-    _check(path, protect)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
             fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs are to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+
+    return write_file_atomic(path, write, protect=protect)
 
 
 def write_text_atomic(path, text: str, *, protect=None, newline: str = "\n") -> Path:

@@ -44,11 +44,11 @@ from ._bayes import (
     Posterior,
     _diagnose,
     _frozen,
-    _problems,
     _sqrt_psd,
     _start_cov,
     check_thin,
 )
+from ._diagnostics import problems as _problems
 from ._moves import DE_FRACTION, DE_SIGMA, STRETCH_A, check_moves, de_gamma0
 
 __all__ = ["fit_profiles_bayes", "sample_posteriors"]

@@ -46,6 +46,7 @@ import numpy as np
 
 from ..errors import AnalysisError, InputError
 from ._diagnostics import arviz_layout, ess_and_rhat, split_rhat
+from ._diagnostics import problems as _problems
 from ._moves import check_moves, emcee_moves
 
 __all__ = [
@@ -338,24 +339,10 @@ class Posterior:
         return self.log_prob.reshape(s, self.n_ensembles, self.nwalkers).transpose(1, 0, 2)
 
     def to_netcdf(self, path) -> str:
-        """Write `to_arviz()` to a netCDF file; `arviz.from_netcdf` reads it. The file
-        appears whole or not at all (a temporary beside it, then renamed)."""
-        import os
-        import tempfile
-
-        path = os.fspath(path)
-        fd, tmp = tempfile.mkstemp(
-            dir=os.path.dirname(os.path.abspath(path)), prefix=".posterior.", suffix=".nc.tmp"
-        )
-        os.close(fd)
-        try:
-            self.to_arviz().to_netcdf(tmp)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
-        return path
+        """Write `to_arviz()` to a netCDF file; `arviz.from_netcdf` reads it. For a file
+        that appears whole or not at all, write through
+        `piecs_bayes.export.write_file_atomic(path, posterior.to_netcdf)` (the CLI does)."""
+        return self.to_arviz().to_netcdf(str(path))
 
 
 def _emcee():
@@ -586,38 +573,3 @@ def sample_posterior(
             raise ConvergenceError(msg)
         warnings.warn(msg, ConvergenceWarning, stacklevel=2)
     return post
-
-
-def _problems(names, tau_max, reliable, ess, rhat, s, *, nsteps, burn, thin, nwalkers,
-              rhat_max, min_ess, tau_factor, n_ensembles):  # fmt: skip
-    """Human-readable reasons (with numbers and advice) why a run is not trusted."""
-    out = []
-    worst = float(np.max(tau_max))
-    kept_steps = s * thin
-    if not np.all(reliable):
-        bad = ", ".join(
-            f"{n} {t:.0f}" for n, t, r in zip(names, tau_max, reliable, strict=True) if not r
-        )
-        need_burn = max(burn, int(math.ceil(5 * worst / 10.0)) * 10)
-        need = int(math.ceil((need_burn + 1.2 * tau_factor * worst) / 100.0) * 100)
-        out.append(
-            f"autocorrelation time not trusted: the kept chain of {kept_steps} steps is shorter "
-            f"than {tau_factor:g} tau (tau in steps: {bad}); increase nsteps to >= {need} "
-            f"(burn >= {need_burn})"
-        )
-    if np.any(rhat > rhat_max):
-        bad = ", ".join(f"{n} ({r:.3f})" for n, r in zip(names, rhat, strict=True) if r > rhat_max)
-        hint = "" if n_ensembles > 1 else "; use n_ensembles >= 2 for a between-ensemble check"
-        out.append(
-            f"split R-hat across {n_ensembles} independent ensembles > {rhat_max}: {bad}; "
-            f"increase nsteps and burn (now {nsteps}, {burn}), or check x0 / multiple modes{hint}"
-        )
-    if np.any(ess < min_ess):
-        lo = float(np.min(ess))
-        bad = ", ".join(f"{n} ({e:.0f})" for n, e in zip(names, ess, strict=True) if e < min_ess)
-        factor = min_ess / max(lo, 1.0)
-        out.append(
-            f"effective sample size < {min_ess:g}: {bad}; multiply nsteps - burn or nwalkers "
-            f"(now {nwalkers} per ensemble) by about {factor:.1f}, or add ensembles"
-        )
-    return out

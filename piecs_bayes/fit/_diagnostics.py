@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["arviz_layout", "ess_bulk", "split_rhat", "rank_normalise"]
+__all__ = ["arviz_layout", "ess_bulk", "problems", "split_rhat", "rank_normalise"]
 
 
 def arviz_layout(kept: np.ndarray) -> np.ndarray:
@@ -144,3 +144,38 @@ def ess_and_rhat(chains) -> tuple[float, float]:
     x = _split(_check(chains, "ess_and_rhat"))
     z = rank_normalise(x)
     return _ess(z), _rhat_from_split(x, z)
+
+
+def problems(names, tau_max, reliable, ess, rhat, s, *, nsteps, burn, thin, nwalkers,
+              rhat_max, min_ess, tau_factor, n_ensembles):  # fmt: skip
+    """Human-readable reasons (with numbers and advice) why a run is not trusted."""
+    out = []
+    worst = float(np.max(tau_max))
+    kept_steps = s * thin
+    if not np.all(reliable):
+        bad = ", ".join(
+            f"{n} {t:.0f}" for n, t, r in zip(names, tau_max, reliable, strict=True) if not r
+        )
+        need_burn = max(burn, int(math.ceil(5 * worst / 10.0)) * 10)
+        need = int(math.ceil((need_burn + 1.2 * tau_factor * worst) / 100.0) * 100)
+        out.append(
+            f"autocorrelation time not trusted: the kept chain of {kept_steps} steps is shorter "
+            f"than {tau_factor:g} tau (tau in steps: {bad}); increase nsteps to >= {need} "
+            f"(burn >= {need_burn})"
+        )
+    if np.any(rhat > rhat_max):
+        bad = ", ".join(f"{n} ({r:.3f})" for n, r in zip(names, rhat, strict=True) if r > rhat_max)
+        hint = "" if n_ensembles > 1 else "; use n_ensembles >= 2 for a between-ensemble check"
+        out.append(
+            f"split R-hat across {n_ensembles} independent ensembles > {rhat_max}: {bad}; "
+            f"increase nsteps and burn (now {nsteps}, {burn}), or check x0 / multiple modes{hint}"
+        )
+    if np.any(ess < min_ess):
+        lo = float(np.min(ess))
+        bad = ", ".join(f"{n} ({e:.0f})" for n, e in zip(names, ess, strict=True) if e < min_ess)
+        factor = min_ess / max(lo, 1.0)
+        out.append(
+            f"effective sample size < {min_ess:g}: {bad}; multiply nsteps - burn or nwalkers "
+            f"(now {nwalkers} per ensemble) by about {factor:.1f}, or add ensembles"
+        )
+    return out

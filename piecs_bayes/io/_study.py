@@ -9,6 +9,7 @@ and, where there is one, the feature id and the offending value. See
 
 from __future__ import annotations
 
+import glob
 import math
 import re
 import tomllib
@@ -275,8 +276,7 @@ def _features(r: _Reader, prof: dict, scale: float, xscale: float) -> list[dict]
             if math.dist(spec["p0"], spec["p1"]) <= 1e-9 * max(1.0, abs(spec["p0"][1])):
                 raise r.error(
                     f"{path}end",
-                    "arc start equals its end (a full circle is not a feature of a turned "
-                    "profile)",
+                    "arc start equals its end (a full circle is not a feature of a turned profile)",
                     feature=fid,
                 )
             r0, r1 = math.dist(spec["p0"], spec["center"]), math.dist(spec["p1"], spec["center"])
@@ -343,7 +343,15 @@ def _files(r: _Reader, tree: dict, base: Path) -> tuple[tuple[Path, ...], Path |
         raise r.error("study.probe_files", f"expected a list of file names, got {probe_files!r}")
     paths = []
     for p in probe_files:
-        matches = sorted(base.glob(p)) if any(ch in p for ch in "*?[") else [base / p]
+        if any(ch in p for ch in "*?["):
+            # Path.glob takes relative patterns only: an absolute one goes to glob.glob
+            matches = (
+                sorted(Path(m) for m in glob.glob(p))
+                if Path(p).is_absolute()
+                else sorted(base.glob(p))
+            )
+        else:
+            matches = [base / p]
         if not matches:
             raise r.error(
                 "study.probe_files", f"no file matches {p!r} (relative to {base})", value=p

@@ -1,8 +1,6 @@
 from ._bands import Bands as Bands
 from ._bands import bands_from_samples as bands_from_samples
 from ._bands import bands_linear as bands_linear
-from ._calibration import CoverageResult as CoverageResult
-from ._calibration import coverage_check as coverage_check
 from ._propagate import AdaptiveMCResult as AdaptiveMCResult
 from ._propagate import adaptive_monte_carlo as adaptive_monte_carlo
 from ._propagate import coverage_interval as coverage_interval

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geometry import MachineTransform, Profile
-from ._toolpath import linearised_toolpath, monte_carlo_toolpath, path_function, path_grid
+from .geometry import MachineTransform, Profile
+from .uncertainty import linearised_toolpath, monte_carlo_toolpath, path_function, path_grid
 
 __all__ = ["CoverageResult", "coverage_check"]
 
@@ -100,6 +100,7 @@ def coverage_check(
     bayes_steps: int = 1500,
     bayes_walkers: int | None = None,
     band_sims: int = 2**15,
+    bayes_chunk: int = 100,
     seed: int = 0,
 ) -> CoverageResult:
     """Simulate `n_parts`, fit and propagate them at the given settings, count coverage.
@@ -116,15 +117,17 @@ def coverage_check(
     - `bayes`: also sample every part's posterior (lockstep ensembles, one ensemble
       per part; the probe sigma estimated with the declared prior unless known) and
       count the Monte Carlo intervals and bands.
+    - `bayes_chunk`: parts sampled together (memory: the lockstep sampler holds their
+      whole chains, parts x walkers x steps x parameters x 8 bytes, until it thins).
     - `band_sims`: quasi-random draws for each linearised band's critical value
       (2^15 scrambled Sobol points: its standard error ~0.005, ~0.1 % of coverage).
 
     **Returns:** a [`CoverageResult`][].
     """
-    from ..fit import fit_profiles, fit_profiles_bayes
-    from ..fit._features import to_part_frame
-    from ..fit._robust import TUNING
-    from ..simulate import simulate_parts
+    from .fit import fit_profiles, fit_profiles_bayes
+    from .fit._features import to_part_frame
+    from .fit._robust import TUNING
+    from .simulate import simulate_parts
 
     source_sd = dict(source_sd or {})
     sim = simulate_parts(
@@ -164,24 +167,22 @@ def coverage_check(
                 "dist": "scaled_inv_chi2", "nu": max(declared_dof, 1e-3), "scale": noise_sd,
             }  # fmt: skip
         starts = {bf.parts[i]: {fid: v[i] for fid, v in values.items()} for i in range(n_parts)}
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # short chains on purpose: coverage is the check
-            posts = fit_profiles_bayes(
-                profile, sim["part"][keep], sim["feature"][keep], sim["points"][keep],
-                starts=starts, sources=sources, ball_radius=ball_radius, transform=transform,
-                sigma=noise_sd, nsteps=bayes_steps, n_ensembles=1, nwalkers=bayes_walkers,
-                progress=False, on_fail="ignore", seed=seed + 1,
-            )  # fmt: skip
-        routes["monte_carlo"] = [
-            _hits(
-                monte_carlo_toolpath(profile, post.deviation_samples, grid=grid, p=p),
-                truth_dev,
-                true_v,
-                true_o,
-                fixed,
-            )  # fmt: skip
-            for post in posts.values()
-        ]
+        routes["monte_carlo"] = []
+        # chunks of parts: the lockstep sampler keeps every part's whole chain
+        # (parts x walkers x steps x parameters) until it thins
+        for lo in range(0, n_parts, bayes_chunk):
+            sel = keep & np.isin(sim["part"], bf.parts[lo : lo + bayes_chunk])
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # short chains on purpose: coverage is the check
+                posts = fit_profiles_bayes(
+                    profile, sim["part"][sel], sim["feature"][sel], sim["points"][sel],
+                    starts=starts, sources=sources, ball_radius=ball_radius,
+                    transform=transform, sigma=noise_sd, nsteps=bayes_steps, n_ensembles=1,
+                    nwalkers=bayes_walkers, progress=False, on_fail="ignore", seed=seed + 1 + lo,
+                )  # fmt: skip
+            for post in posts.values():
+                u = monte_carlo_toolpath(profile, post.deviation_samples, grid=grid, p=p)
+                routes["monte_carlo"].append(_hits(u, truth_dev, true_v, true_o, fixed))
     rates, per_feature = {}, {}
     for route, hits in routes.items():
         dev = np.concatenate([np.concatenate(list(h[0].values())) for h in hits])
