@@ -214,6 +214,8 @@ CLASSES = [
     ("arc_closed", "end = [36.0000, -60.0000]\ncenter", "end = [30.0000, -57.0000]\ncenter", 2, "full circle"),
     ("twice", 'probe_files = ["probe_part01.csv"]', 'probe_files = ["probe_part01.csv", "probe_part01.csv"]', 2, "listed twice"),
     ("bad_encoding", 'name = "Demo stepped shaft"', 'name = "Demo stepped shaft"\nencoding = "klingon"', 2, "unknown encoding"),
+    ("prior_key", "sd = 0.0005 }", "sdd = 0.0005 }", 2, "did you mean 'sd'"),
+    ("prior_dist", 'dist = "half_normal"', 'dist = "halfnorml"', 2, "unknown distribution"),
 ]  # fmt: skip
 
 
@@ -226,6 +228,13 @@ def test_each_class_gets_its_one_line_message(capsys, demo_copy, case):
     _check(rc, text, demo_copy, before, [study.name, "probe_part01.csv"], None)
     assert rc == code and expect in text, text
     assert len(text.strip().splitlines()) == 1, text
+
+
+def test_a_utf8_bom_is_accepted_in_the_study(capsys, demo_copy):
+    study = demo_copy / "bom_study.toml"
+    study.write_bytes(b"\xef\xbb\xbf" + (DEMO / "study.toml").read_bytes())
+    rc, text = _run(capsys, ["fit", study, "-q", "--out", demo_copy / "o_bom"])
+    assert rc == 0, text
 
 
 def test_probe_classes(capsys, demo_copy):
@@ -320,14 +329,21 @@ def test_debug_shows_the_traceback(capsys, demo_copy):
     assert rc == 2 and "Traceback" in text and "study file not found" in text
 
 
+#: the CLI in a child process with SIGINT handled as in a terminal: a test runner that
+#: was itself started in the background passes SIGINT on as ignored (and a preexec_fn
+#: would make subprocess fork a multithreaded JAX process)
+_CHILD = (
+    "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    "sys.argv = ['piecs-bayes', *sys.argv[1:]]; runpy.run_module('piecs_bayes.cli', "
+    "run_name='__main__')"
+)
+
+
 def _start(argv, cwd) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "piecs_bayes.cli", *map(str, argv)],
+        [sys.executable, "-c", _CHILD, *map(str, argv)],
         cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "JAX_PLATFORMS": "cpu", "MPLBACKEND": "Agg"},
-        # a test runner started in the background passes SIGINT on as ignored: reset it,
-        # as a terminal would have it
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
 
 

@@ -14,7 +14,7 @@ import difflib
 
 from ..errors import InputError
 
-__all__ = ["SECTIONS", "check_keys", "nearest"]
+__all__ = ["DIST_KEYS", "SECTIONS", "check_keys", "check_source", "nearest"]
 
 #: section -> its keys; "profile.feature" is each [[profile.feature]] table.
 #: `uncertainty` holds one table per source (names in `_study.KNOWN_SOURCES`) whose
@@ -37,6 +37,40 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "program": ("nose_radius", "tool_table", "mapping", "tolerance"),
     "plausibility": ("max_distance", "max_outside", "duplicates"),
 }  # fmt: skip
+
+
+#: `[uncertainty]` source tables: distribution -> its keys (the study file's names; what
+#: they mean is `piecs_bayes.fit._priors`, which reads them)
+DIST_KEYS: dict[str, tuple[str, ...]] = {
+    "normal": ("mean", "sd"),
+    "gaussian": ("mean", "sd"),
+    "uniform": ("low", "high", "mean", "half_width"),
+    "rectangular": ("low", "high", "mean", "half_width"),
+    "half_normal": ("sd",),
+    "halfnormal": ("sd",),
+    "lognormal": ("mu", "sigma"),
+    "log_normal": ("mu", "sigma"),
+    "student_t": ("nu", "loc", "mean", "scale"),
+    "t": ("nu", "loc", "mean", "scale"),
+    "studentt": ("nu", "loc", "mean", "scale"),
+    "scaled_inv_chi2": ("nu", "scale"),
+}
+
+
+def check_source(file: str, name: str, spec: dict) -> None:
+    """An `[uncertainty]` table: a known `dist` and only its keys (nearest name suggested)."""
+    dist = spec.get("dist")
+    if not isinstance(dist, str) or dist.lower() not in DIST_KEYS:
+        raise InputError(
+            f"uncertainty.{name}.dist: unknown distribution {dist!r}"
+            f"{nearest(str(dist), DIST_KEYS)} (expected one of {', '.join(DIST_KEYS)})",
+            file=file,
+            value=dist,
+        )
+    keys = DIST_KEYS[dist.lower()]
+    for key in spec:
+        if key != "dist" and key not in keys:
+            raise _unknown(file, f"uncertainty.{name}.", key, keys, spec[key])
 
 
 def nearest(name: str, options) -> str:

@@ -20,7 +20,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..geometry import MachineTransform, Profile, ProfileError, make_feature, profile_side
-from ._schema import check_keys
+from ._schema import check_keys, check_source
 from ._text import check_encoding, decode, read_bytes
 
 __all__ = [
@@ -323,6 +323,7 @@ def _sources(r: _Reader, tree: dict, scale: float) -> dict:
                 path,
                 f"expected a table with 'dist' (normal, uniform, half_normal...), got {spec!r}",
             )
+        check_source(r.file, name, spec)
         spec = dict(spec)
         for key, val in spec.items():
             if key == "dist":
