@@ -157,6 +157,8 @@ class BatchFit:
     pooled_dof: np.ndarray | None = field(default=None, repr=False)
     #: the probe-sigma rule: (declared, declared_dof, known) - see `fit._sigma`
     sigma_rule: tuple = (None, DECLARED_DOF, False)
+    #: the sigma the solves' covariances were computed with (rescaled to `sigma`)
+    reference_sigma: float = 1.0
     _index: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -238,7 +240,7 @@ class BatchFit:
         cov_free = self._scatter(fid, "covariance", np.nan, (p, p))
         out = np.zeros((len(self.parts), f.nparams, f.nparams))
         out[np.ix_(np.arange(len(self.parts)), free, free)] = cov_free
-        out *= (self.sigma**2)[:, None, None]  # unit covariances -> the part's sigma
+        out *= ((self.sigma / self.reference_sigma) ** 2)[:, None, None]  # -> the part's sigma
         bad = self.covariance_code(fid) != _COV_OK
         out[bad] = np.nan
         return out
@@ -411,7 +413,7 @@ class BatchFit:
         ps = self.probe_sigma(i)
         return ProfileFit(
             self.profile,
-            scale_fits(fits, ps.value),
+            scale_fits(fits, ps.value / self.reference_sigma),
             "lsq" if self.method == "lsq" else "robust",
             tuple(unmeasured),
             self.parts[i],
@@ -643,7 +645,10 @@ def fit_profiles(
 
     rb = jnp.asarray(float(ball_radius))
     s_arr = jnp.asarray(np.nan if scale is None else float(scale))
-    sig_arr = jnp.asarray(1.0)  # unit covariances; each part's sigma scales them
+    # covariances at a reference sigma (known or declared: it sets the stationarity
+    # test's scale), rescaled per part to its probe sigma
+    ref = float(sigma if sigma is not None else (declared if declared is not None else 1.0))
+    sig_arr = jnp.asarray(ref)
     results = [dict() for _ in specs]
     pending: list = []
 
@@ -712,6 +717,7 @@ def fit_profiles(
         pooled_ss=ss,
         pooled_dof=dof,
         sigma_rule=(declared if sigma is None else float(sigma), declared_dof, sigma is not None),
+        reference_sigma=ref,
         method="lsq" if method == "lsq" else f"robust/{loss}",
         loss=loss_used,
         fix=fix,

@@ -123,13 +123,14 @@ def fit_profile_joint(
     n_par = sum(len(fr) for _, _, fr in groups) + len(free_t)
     if len(order) <= n_par:
         raise InputError(f"{len(order)} points are too few for a joint fit of {n_par} parameters")
+    ref = float(sigma if sigma is not None else (declared if declared is not None else 1.0))
     res = least_squares(
         fn,
         y0,
         (jnp.asarray(pts[order]), jnp.asarray(float(ball_radius))),
         loss=loss,
         scale=scale,
-        sigma=1.0,  # unit covariance, scaled by the probe sigma below
+        sigma=ref,  # covariance at a reference sigma, rescaled to the probe sigma below
     )
     inl = np.ones(len(order), dtype=bool)
     inl[list(res.outliers)] = False
@@ -140,7 +141,7 @@ def fit_profile_joint(
     )  # fmt: skip
     # Map the flat covariance (ravel order: features by sorted id, then transform)
     names = res.param_names
-    cov = None if res.covariance is None else np.asarray(res.covariance) * ps.value**2
+    cov = None if res.covariance is None else np.asarray(res.covariance) * (ps.value / ref) ** 2
     fits = {}
     outl = set(res.outliers)
     for f, sl, free in groups:

@@ -139,6 +139,9 @@ def fit_profile(
                 column="feature",
                 feature=fid,
             )
+    # the reference sigma of the solves: the known or declared one (it also sets the
+    # scale of the stationarity test, so it should be realistic), else 1
+    ref = float(sigma if sigma is not None else (declared if declared is not None else 1.0))
     fits, unmeasured = {}, []
     for f in profile.features:
         m = feature_ids == f.id
@@ -161,7 +164,7 @@ def fit_profile(
             method=method,
             loss=loss,
             scale=scale,
-            sigma=1.0,  # unit covariances, scaled below by the part's probe sigma
+            sigma=ref,  # covariances at a reference sigma, rescaled below to the part's
             fix=tuple(fix.get(f.id, ())),
             lines=lines[m],
         )
@@ -177,15 +180,16 @@ def fit_profile(
     except InputError as exc:
         raise InputError(str(exc), file=file) from None
     return ProfileFit(
-        profile, scale_fits(fits, ps.value), method, tuple(unmeasured), part, sigma=ps
+        profile, scale_fits(fits, ps.value / ref), method, tuple(unmeasured), part, sigma=ps
     )
 
 
-def scale_fits(fits: dict, sigma: float) -> dict:
-    """Feature fits with unit covariances scaled by the probe `sigma` (mm)."""
+def scale_fits(fits: dict, factor: float) -> dict:
+    """Feature fits with their covariances multiplied by `factor`**2 (the part's probe
+    sigma over the sigma the solves used)."""
     out = {}
     for fid, f in fits.items():
-        cov = None if f.covariance is None else np.asarray(f.covariance) * sigma**2
+        cov = None if f.covariance is None else np.asarray(f.covariance) * factor**2
         se = None if cov is None else np.sqrt(np.diag(cov))
         out[fid] = dataclasses.replace(f, covariance=cov, std_errors=se)
     return out
