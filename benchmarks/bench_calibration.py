@@ -50,11 +50,14 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--sigma", choices=("both", "pooled", "known"), default="both", help="which sigma rules"
     )
+    ap.add_argument("--config", choices=("all", *CONFIGS), default="all", help="which probing")
     args = ap.parse_args(argv)
     profile = demo_profile()
     truth = process_deviations(profile, DEMO_ERRORS)
     summary = []
     for name, (points, margin) in CONFIGS.items():
+        if args.config not in ("all", name):
+            continue
         for known in {"both": (False, True), "pooled": (False,), "known": (True,)}[args.sigma]:
             t0 = time.perf_counter()
             res = coverage_check(

@@ -226,3 +226,17 @@ def test_program_settings_are_read(tmp_path):
     )
     assert study.program_settings.nose_radius == pytest.approx(0.4)
     assert dict(study.program_settings.mapping) == {"dia": (70, 80)}
+
+
+def test_probe_rows_end_at_newlines_only(tmp_path):
+    """A form feed or a Unicode line separator inside a comment is not a new row, and
+    CRLF files read like LF files (line numbers are the file's)."""
+    from piecs_bayes.io import read_probe_csv
+
+    p = tmp_path / "p.csv"
+    p.write_bytes(
+        b"# exported\x0c page 2 \xe2\x80\xa8 note\r\nfeature,x,z\r\ndia,24.0,-5.0\r\n"
+        b"dia,24.0,-6.0\r\ndia,24.0,-7.0\r\n"
+    )
+    d = read_probe_csv(p, x_mode="diameter")
+    assert len(d) == 3 and list(d.lines) == [3, 4, 5]

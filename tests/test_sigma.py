@@ -163,6 +163,8 @@ def test_study_outputs_name_the_sigma_and_known_sigma_is_declared():
     kfit = fit_study(known)
     assert kfit.sigma.value == study.probe.repeatability and kfit.sigma.dof == math.inf
     assert ",declared,inf" in fit_csv(kfit)
+    doc = json.loads(fit_json(kfit), parse_constant=lambda c: pytest.fail(f"non-JSON {c}"))
+    assert doc["probe_sigma"]["dof"] is None and doc["probe_sigma"]["declared_dof"] is None
     # the Bayesian fit: sigma estimated with the declared prior unless known
     assert bayes_sources(study)["repeatability"] == dict(study.sources["repeatability"])
     plain = dataclasses.replace(

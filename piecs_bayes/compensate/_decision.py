@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import functools
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Literal
@@ -595,7 +596,7 @@ def decide(
             feature=feature,
             value=u_systematic,
         )
-    if isinstance(dof, bool) or not isinstance(dof, int | float) or not dof > 0:
+    if isinstance(dof, bool) or not isinstance(dof, numbers.Real) or not dof > 0:
         raise InputError(f"dof must be a number > 0 (or inf), got {dof!r}", feature=feature)
     dof = float(dof)
     if math.isfinite(dof):

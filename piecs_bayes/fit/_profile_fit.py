@@ -140,8 +140,36 @@ def fit_profile(
                 feature=fid,
             )
     # the reference sigma of the solves: the known or declared one (it also sets the
-    # scale of the stationarity test, so it should be realistic), else 1
+    # scale of the stationarity test, so it should be realistic); with neither, a first
+    # pass at 1 mm gives the pooled residual sd and the solves are repeated at it
     ref = float(sigma if sigma is not None else (declared if declared is not None else 1.0))
+    kw = dict(ball_radius=ball_radius, method=method, loss=loss, scale=scale)
+    fits, unmeasured = _fit_features(profile, feature_ids, centres, lines, fix, min_points,
+                                     file, ref, kw)  # fmt: skip
+    if sigma is None and declared is None and fits:
+        ss, dof = pooled_residuals(fits.values())
+        if dof > 0 and ss > 0:
+            ref = float(np.sqrt(ss / dof))
+            fits, _ = _fit_features(profile, feature_ids, centres, lines, fix, min_points,
+                                    file, ref, kw)  # fmt: skip
+    if not fits:
+        raise InputError("no probe point belongs to any profile feature", file=file)
+    ss, dof = pooled_residuals(fits.values())
+    try:
+        ps = probe_sigma(
+            ss, dof, declared=declared if sigma is None else sigma,
+            declared_dof=declared_dof, known=sigma is not None,
+            what=f"part {part!r}" if part is not None else "part",
+        )  # fmt: skip
+    except InputError as exc:
+        raise InputError(str(exc), file=file) from None
+    return ProfileFit(
+        profile, scale_fits(fits, ps.value / ref), method, tuple(unmeasured), part, sigma=ps
+    )
+
+
+def _fit_features(profile, feature_ids, centres, lines, fix, min_points, file, ref, kw):
+    """Every measured feature fitted with covariances at the reference sigma `ref`."""
     fits, unmeasured = {}, []
     for f in profile.features:
         m = feature_ids == f.id
@@ -158,30 +186,9 @@ def fit_profile(
                 value=k,
             )
         fits[f.id] = fit_feature(
-            f,
-            centres[m],
-            ball_radius=ball_radius,
-            method=method,
-            loss=loss,
-            scale=scale,
-            sigma=ref,  # covariances at a reference sigma, rescaled below to the part's
-            fix=tuple(fix.get(f.id, ())),
-            lines=lines[m],
+            f, centres[m], sigma=ref, fix=tuple(fix.get(f.id, ())), lines=lines[m], **kw
         )
-    if not fits:
-        raise InputError("no probe point belongs to any profile feature", file=file)
-    ss, dof = pooled_residuals(fits.values())
-    try:
-        ps = probe_sigma(
-            ss, dof, declared=declared if sigma is None else sigma,
-            declared_dof=declared_dof, known=sigma is not None,
-            what=f"part {part!r}" if part is not None else "part",
-        )  # fmt: skip
-    except InputError as exc:
-        raise InputError(str(exc), file=file) from None
-    return ProfileFit(
-        profile, scale_fits(fits, ps.value / ref), method, tuple(unmeasured), part, sigma=ps
-    )
+    return fits, unmeasured
 
 
 def scale_fits(fits: dict, factor: float) -> dict:

@@ -86,7 +86,7 @@ class ProbeSigma:
             "pooled_sd_mm": num(self.pooled_sd),
             "pooled_dof": int(self.pooled_dof),
             "declared_mm": num(self.declared),
-            "declared_dof": float(self.declared_dof),
+            "declared_dof": num(self.declared_dof),
         }
 
     def describe(self) -> str:

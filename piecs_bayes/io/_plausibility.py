@@ -187,10 +187,12 @@ def check_probe_data(probe, profile, *, transform, ball_radius, max_correction, 
     fid = str(probe.feature[i])
     lim_d, lim_o = limits[fid]
     if abs(dist[i]) > lim_d or not np.isfinite(dist[i]):
-        what = (
-            f"ball centre {dist[i]:+.4g} mm from its nominal place (limit {lim_d:.3g} mm: "
-            "the larger of 0.5 mm and 3 x (max_correction + tolerance))"
+        why = (
+            "[plausibility] max_distance"
+            if "max_distance" in settings
+            else "the larger of 0.5 mm and 3 x (max_correction + tolerance)"
         )
+        what = f"ball centre {dist[i]:+.4g} mm from its nominal place (limit {lim_d:.3g} mm: {why})"
     else:
         what = f"point {beyond[i]:.4g} mm beyond the end of the feature (limit {lim_o:.3g} mm)"
     files = probe.file.split(",")

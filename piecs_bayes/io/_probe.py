@@ -80,7 +80,9 @@ class ProbeData:
 
 def _lines_without_comments(path: Path, encoding: str):
     text = read_text(path, encoding=encoding, what="probe file")
-    for lineno, raw in enumerate(text.splitlines(), start=1):
+    # lines end at "\n" only (a form feed in a comment is not a new row), "\r\n" too
+    for lineno, raw in enumerate(text.split("\n"), start=1):
+        raw = raw.rstrip("\r")
         stripped = raw.strip()
         if not stripped or stripped.startswith("#"):
             continue

@@ -47,7 +47,7 @@ KNOWN_SOURCES = {
     "thermal": "1/K (thermal expansion error, times the temperature difference)",
 }
 _LENGTH_SOURCES = {"repeatability", "ball_radius", "pretravel", "x_centre", "z_offset"}
-_DIST_LENGTH_KEYS = {"mean", "sd", "low", "high", "scale"}
+_DIST_LENGTH_KEYS = {"mean", "sd", "low", "high", "scale", "half_width", "loc"}
 
 
 @dataclass(frozen=True)

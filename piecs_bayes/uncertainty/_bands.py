@@ -286,10 +286,11 @@ def _dof_key(dof) -> float | None:
     return None if dof is None else float(f"{float(dof):.2g}")
 
 
-def _cov_factor(c: np.ndarray) -> np.ndarray:
-    """Rank-r factor of a covariance: C = L L^T, L of shape (n, r)."""
+def _cov_factor(c: np.ndarray, scale: float) -> np.ndarray:
+    """Rank-r factor of a covariance: C = L L^T, L of shape (n, r); eigenvalues below
+    1e-12 `scale` (the largest of the whole covariance) are rounding, not a share."""
     w, v = np.linalg.eigh(0.5 * (c + c.T))
-    keep = w > 1e-12 * max(w.max(), 0.0)
+    keep = w > 1e-12 * scale
     return v[:, keep] * np.sqrt(w[keep])
 
 
@@ -298,8 +299,9 @@ def _bands_mixed(m, c, ca, sd, p, dof, method, n_sim, seed) -> Bands:
     if ca.shape != c.shape or not np.all(np.isfinite(ca)):
         raise InputError(f"cov_estimated: got shape {ca.shape}, expected {c.shape}, finite")
     safe = np.where(sd > 0.0, sd, 1.0)[:, None]
-    la = _cov_factor(ca) / safe
-    lb = _cov_factor(c - ca) / safe
+    top = max(float(np.linalg.eigvalsh(0.5 * (c + c.T)).max()), 0.0)
+    la = _cov_factor(ca, top) / safe
+    lb = _cov_factor(c - ca, top) / safe
     da = np.clip(np.diag(ca), 0.0, None)
     with np.errstate(divide="ignore", invalid="ignore"):
         nu = np.where(da > 0, dof * (np.diag(c) / np.where(da > 0, da, 1.0)) ** 2, np.inf)
@@ -310,7 +312,8 @@ def _bands_mixed(m, c, ca, sd, p, dof, method, n_sim, seed) -> Bands:
     if ka + kb == 0:
         return _make(m, sd, cp, 0.0, 0.0, p, f"linear-{method}", 0)
     if method == "scheffe":
-        cs = math.sqrt((ka + kb) * stats.f.ppf(p, ka + kb, dof))
+        r = int(np.linalg.matrix_rank(np.hstack([la, lb])))
+        cs = math.sqrt(r * stats.f.ppf(p, r, dof))
         return _make(m, sd, cp, cs, 0.0, p, "linear-scheffe", 0)
     if n_sim < 100:
         raise InputError(f"n_sim: got {n_sim!r}, expected >= 100", value=n_sim)
