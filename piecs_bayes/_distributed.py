@@ -39,6 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .errors import InputError
+from .fit import DECLARED_DOF
 from .geometry import Line, MachineTransform, Profile
 
 __all__ = [
@@ -74,7 +75,7 @@ class CapabilityJob:
     sources: tuple
     file: str | None = None
     declared: float | None = None
-    declared_dof: float = 8.0
+    declared_dof: float = DECLARED_DOF
 
 
 def _fix_of(study) -> dict[str, tuple]:

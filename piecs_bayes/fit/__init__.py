@@ -34,6 +34,7 @@ from ._priors import Uniform as Uniform
 from ._priors import prior_from_spec as prior_from_spec
 from ._profile_fit import ProfileFit as ProfileFit
 from ._profile_fit import fit_profile as fit_profile
+from ._sigma import DECLARED_DOF as DECLARED_DOF
 from ._sigma import ProbeSigma as ProbeSigma
 from ._sigma import coverage_factor as coverage_factor
 from ._sigma import effective_dof as effective_dof
