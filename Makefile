@@ -1,4 +1,5 @@
-# Every target sets itself up: a .venv built from pyproject.toml.
+# Every target sets itself up: a .venv built from pyproject.toml, at the exact
+# versions of constraints.txt (the golden outputs are byte-identical only with them).
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -6,14 +7,14 @@ STAMP  := $(VENV)/.installed
 export MPLBACKEND := Agg
 export JAX_PLATFORMS := cpu
 
-.PHONY: demo test lint clean venv conformance
+.PHONY: demo test lint lint-imports clean venv conformance
 
 venv: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[test]"
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e ".[test,dask,notebooks]"
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -34,6 +35,11 @@ conformance: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check piecs_bayes tests
 	$(BIN)/ruff format --check piecs_bayes tests
+	$(BIN)/lint-imports
+
+# The layers contract ([tool.importlinter] in pyproject.toml) on its own.
+lint-imports: $(STAMP)
+	$(BIN)/lint-imports
 
 clean:
-	rm -rf $(VENV) reports/demo .pytest_cache
+	rm -rf $(VENV) reports/demo .pytest_cache .import_linter_cache

@@ -19,8 +19,8 @@ from __future__ import annotations
 import argparse
 import time
 
-from piecs_bayes.calibration import coverage_check
-from piecs_bayes.simulate import (
+from piecs_bayes.jobs import coverage_check
+from piecs_bayes.jobs.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
     DEMO_TRANSFORM,

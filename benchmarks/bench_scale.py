@@ -50,16 +50,10 @@ import numpy as np  # noqa: E402
 from _common import load, machine_line, simulate_fleet, timeit  # noqa: E402
 
 import piecs_bayes  # noqa: E402,F401
-from piecs_bayes.fit import fit_profiles  # noqa: E402
-from piecs_bayes.fit._features import to_part_frame  # noqa: E402
-from piecs_bayes.pipeline import (  # noqa: E402
-    fit_study,
-    inliers,
-    load_probe_data,
-    load_study,
-    robust_scale,
-)
-from piecs_bayes.simulate import DEMO_TRANSFORM  # noqa: E402
+from piecs_bayes.fit import fit_profiles, to_part_frame  # noqa: E402
+from piecs_bayes.io import load_study  # noqa: E402
+from piecs_bayes.jobs import fit_study, inliers, load_probe_data, robust_scale  # noqa: E402
+from piecs_bayes.jobs.simulate import DEMO_TRANSFORM  # noqa: E402
 
 DEMO = ROOT / "data" / "demo" / "study.toml"
 TOL = 1e-10
@@ -189,7 +183,8 @@ def section_a(args):
 
 def _child_b(n_parts: int) -> dict:
     """Runs in a fresh process: simulate, fit, characterise; reports times and peak RSS."""
-    from piecs_bayes._distributed import capability_job, characteristic_arrays  # noqa: F401
+    from piecs_bayes.jobs import capability_job  # noqa: F401
+    from piecs_bayes.uncertainty import characteristic_arrays  # noqa: F401
 
     fleet = simulate_fleet(n_parts, seed=1)
     centres = to_part_frame(DEMO_TRANSFORM, fleet["points"])
@@ -564,7 +559,7 @@ def section_e(args):
         ["no persistent cache (PIECS_BAYES_NO_CACHE=1)", f"{none:.2f} s", f"{cold / none:.1f}x"],
     ]
     print(_table(rows, ["wall time, whole process", "time", "vs cold"]))
-    imp = {m: _import_time(m) for m in ("piecs_bayes.cli", "piecs_bayes.pipeline", "jax")}
+    imp = {m: _import_time(m) for m in ("piecs_bayes.cli", "piecs_bayes.jobs", "jax")}
     print(
         f"\nCache: {n_files} entries, {size / 1e6:.1f} MB; the warm runs wrote {stable}. "
         "Import (python -X importtime, cumulative): "

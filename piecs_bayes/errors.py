@@ -50,4 +50,17 @@ class InputError(PiecsError, ValueError):
 
 class AnalysisError(PiecsError, RuntimeError):
     """The analysis could not give a trustworthy answer (no convergence, gouge,
-    a correction above the limit...). The CLI exits with code 1."""
+    a correction above the limit...). The CLI exits with code 1.
+
+    **Arguments:**
+
+    - `*args`: the message (as for any exception).
+    - `result`: what was computed before the analysis gave up (e.g. the
+      [`LsqResult`][piecs_bayes.fit.LsqResult] of a fit that did not converge),
+      kept as the attribute `result` so that the caller can still look at it;
+      `None` when there is nothing to show.
+    """
+
+    def __init__(self, *args: object, result: object = None):
+        super().__init__(*args)
+        self.result = result

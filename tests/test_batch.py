@@ -12,11 +12,16 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from piecs_bayes._distributed import fit_study_batch, path_uncertainty_batch
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.fit import Status, fit_profiles, sample_posterior, sample_posteriors
-from piecs_bayes.fit._features import to_part_frame
-from piecs_bayes.pipeline import fit_study, load_probe_data, load_study, robust_scale
+from piecs_bayes.fit import Status, fit_profiles, sample_posterior, sample_posteriors, to_part_frame
+from piecs_bayes.io import load_study
+from piecs_bayes.jobs import (
+    fit_study,
+    fit_study_batch,
+    load_probe_data,
+    path_uncertainty_batch,
+    robust_scale,
+)
 from piecs_bayes.uncertainty import linearised_toolpath
 
 BATCH = Path(__file__).resolve().parents[1] / "data" / "batch" / "study.toml"
@@ -92,7 +97,7 @@ def test_densely_probed_features_equal_the_loop():
 
     from piecs_bayes.fit import fit_profile
     from piecs_bayes.fit._batch import KERNEL_MAX_POINTS
-    from piecs_bayes.simulate import DEMO_TRANSFORM
+    from piecs_bayes.jobs.simulate import DEMO_TRANSFORM
 
     fleet = simulate_fleet(3, seed=5, points=40)
     c = to_part_frame(DEMO_TRANSFORM, fleet["points"])

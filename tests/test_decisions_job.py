@@ -15,7 +15,9 @@ from types import MappingProxyType
 import numpy as np
 import pytest
 
-from piecs_bayes import decisions as D
+import piecs_bayes.export as E
+import piecs_bayes.jobs as D
+import piecs_bayes.uncertainty as U
 from piecs_bayes.cli import main
 from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.export import (
@@ -24,8 +26,9 @@ from piecs_bayes.export import (
     read_errspec,
     read_linuxcnc_comp,
 )
-from piecs_bayes.pipeline import fit_study, load_study
-from piecs_bayes.simulate import (
+from piecs_bayes.io import load_study
+from piecs_bayes.jobs import fit_study
+from piecs_bayes.jobs.simulate import (
     DEMO_EXTRA,
     DEMO_POINTS,
     DEMO_TRANSFORM,
@@ -107,7 +110,7 @@ def batch():
 def test_characteristic_is_the_normal_deviation(demo):
     study, fit = demo
     f = fit["dia_24"]
-    c = D.feature_characteristic(f, at="mid")
+    c = U.feature_characteristic(f, at="mid")
     # at the nominal mid-point of a line it is the fitted offset (times cos(rotation),
     # the distance is measured normal to the fitted line), with its uncertainty
     assert c.mean == pytest.approx(f.values[0] * math.cos(f.values[1]), abs=1e-15)
@@ -116,14 +119,14 @@ def test_characteristic_is_the_normal_deviation(demo):
     # the compiled model agrees with the geometry's own point_at / signed_distance
     for ff in (fit["taper"], fit["fillet"]):
         ts = np.array([0.0, 0.3, 1.0])
-        val, jac = D._dev_and_jac(ff.feature, ff.values, ts)
-        ref = np.asarray(D.normal_deviation(ff.feature, ff.values, ts))
+        val, jac = U.deviation_and_jacobian(ff.feature, ff.values, ts)
+        ref = np.asarray(U.normal_deviation(ff.feature, ff.values, ts))
         np.testing.assert_allclose(val, ref, rtol=0, atol=1e-12)
         h = 1e-7
         for k in range(len(ff.values)):
             d = np.array(ff.values, dtype=float)
             d[k] += h
-            fd = (np.asarray(D.normal_deviation(ff.feature, d, ts)) - ref) / h
+            fd = (np.asarray(U.normal_deviation(ff.feature, d, ts)) - ref) / h
             np.testing.assert_allclose(jac[:, k], fd, rtol=1e-5, atol=1e-6)
     # the worst point of a line is an end; systematic sources from the study
     w = D.characteristics(study, fit, at="worst")["dia_24"]
@@ -163,15 +166,15 @@ def test_decision_table_outputs(demo):
     study, fit = demo
     table = D.decide_study(study, fit)
     assert [d.feature for d in table.decisions] == list(study.profile.ids)
-    doc = json.loads(table.to_json())
+    doc = json.loads(E.decisions_json(table))
     assert doc["schema"] == "piecs_bayes.decisions" and doc["characteristic"] == "worst"
     assert doc["settings"]["max_correction"] == study.compensation.max_correction
     row = {f["feature"]: f for f in doc["features"]}["dia_24"]
     assert row["verdict"] == "compensate" and row["characteristic"]["at"] in ("start", "end")
     assert {a["name"] for a in row["actions"]} >= {"none", "full", "fraction", "grubbs", "bayes"}
-    rows = list(csv.DictReader(table.to_csv().splitlines()))
+    rows = list(csv.DictReader(E.decisions_csv(table).splitlines()))
     assert len(rows) == 7 and rows[1]["verdict"] == "compensate"
-    text = table.text()
+    text = E.decisions_text(table)
     assert "COMPENSATE" in text and "dia_24" in text
 
 
@@ -284,11 +287,11 @@ def test_capability_over_the_batch_finds_the_tool_change(batch):
         for v, u, t in zip(f.values, np.hypot(f.u, 0.0), truth["parts"], strict=True)
     ]
     assert np.median(np.abs(z)) < 1.5 and np.max(np.abs(z)) < 5.0
-    doc = json.loads(cs.to_json())
+    doc = json.loads(E.capability_json(cs))
     assert doc["schema"] == "piecs_bayes.capability" and doc["steps"][change]
     fj = {x["feature"]: x for x in doc["features"]}["dia_24"]
     assert fj["stability"]["step_before_part"] == change and len(fj["values"]) == 36
-    text = cs.text()
+    text = E.capability_text(cs)
     assert f"STEP before {change}" in text
     assert len(cs.part_rows()) == 36 * 7 and len(cs.summary_rows()) == 7
 
@@ -328,7 +331,7 @@ def _independent_comp_check(text: str) -> list[tuple[float, float, float]]:
 
 def test_compensation_outputs_are_written_and_validated(demo, tmp_path):
     study, fit = demo
-    out = D.write_compensation_outputs(study, fit, tmp_path)
+    out = E.write_compensation_outputs(study, fit, tmp_path)
     names = {p.name for p in out.written}
     assert {"compensation.errspec.json", "compensation.x_dia_24.csv"} <= names
     assert {"linuxcnc_x.comp", "linuxcnc_z.comp", "linuxcnc_comp.ini"} <= names
@@ -379,7 +382,7 @@ def test_tool_offsets_with_current_values_nose_radius_and_block(demo, tmp_path):
     study, fit = demo
     cur = {"current_x": 0.1234, "current_z": -2.5, "current_r": 0.4, "tool": 3}
     s1 = replace(study, offsets=MappingProxyType(cur))
-    out = D.write_compensation_outputs(s1, fit, tmp_path / "a", gain=0.5)
+    out = E.write_compensation_outputs(s1, fit, tmp_path / "a", gain=0.5)
     g10 = (tmp_path / "a" / "tool_offsets_linuxcnc.ngc").read_text()
     assert "G10 L1 P3 X0.0862 Z-2.4893" in g10 and "G21 G7" in g10
     off, rot = fit["dia_24"].values
@@ -399,7 +402,7 @@ def test_tool_offsets_with_current_values_nose_radius_and_block(demo, tmp_path):
     assert any("nose-radius change" in n for n in notes)
     # an error above the upper limit blocks the update: JSON only, no G10
     s3 = replace(study, offsets=MappingProxyType({"upper_limit": 0.03}))
-    out = D.write_compensation_outputs(s3, fit, tmp_path / "b")
+    out = E.write_compensation_outputs(s3, fit, tmp_path / "b")
     names = {p.name for p in out.written}
     assert "tool_offsets.json" in names and "tool_offsets_fanuc.ngc" not in names
     assert out.offsets.blocked and any("no G10 written" in n for n in out.notes)
@@ -442,7 +445,7 @@ def test_cli_decide_capability_and_compensate(demo, tmp_path, capsys):
 def test_a_failed_part_fit_falls_back_or_is_left_out(monkeypatch):
     # capability_study fits in batches (piecs_bayes._distributed, issue 8): a failed
     # fit is a non-zero status of its batch problems, simulated here
-    import piecs_bayes._distributed as dist
+    import piecs_bayes.jobs._batch as dist
     from piecs_bayes.fit import Status
 
     study = load_study(BATCH)
@@ -462,4 +465,4 @@ def test_a_failed_part_fit_falls_back_or_is_left_out(monkeypatch):
     assert cs.parts == ("part01", "part02", "part04", "part05")
     assert any(n.startswith("part02: robust fit failed") for n in cs.notes)
     assert any(n.startswith("part03: left out") for n in cs.notes)
-    assert "notes:" in cs.text()
+    assert "notes:" in E.capability_text(cs)

@@ -11,9 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from piecs_bayes import decisions as D
+import piecs_bayes.jobs as D
 from piecs_bayes.errors import InputError
-from piecs_bayes.pipeline import load_probe_data, load_study
+from piecs_bayes.io import load_study
+from piecs_bayes.jobs import load_probe_data
 
 distributed = pytest.importorskip("distributed")
 

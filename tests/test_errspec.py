@@ -6,10 +6,9 @@ import re
 import numpy as np
 import pytest
 
+from piecs_bayes.compensate import CompensationTable, ErrorSpec
 from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.export import (
-    CompensationTable,
-    ErrorSpec,
     errspec_texts,
     linuxcnc_comp_text,
     parse_linuxcnc_comp,

@@ -7,11 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from piecs_bayes import _cli_gcode
+from piecs_bayes.cli import _gcode as _cli_gcode
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.geometry import nose_compensate
-from piecs_bayes.io import read_gcode, read_tool_table
-from piecs_bayes.io._gcode_rs274 import rs274_path
+from piecs_bayes.gcode import nose_compensate, read_gcode, read_tool_table, rs274_path
 
 DATA = Path(__file__).parent / "data" / "gcode"
 PROGRAM = DATA / "01_od_dia_mm_t3_g42.ngc"

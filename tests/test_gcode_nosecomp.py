@@ -10,13 +10,16 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.geometry import (
+from piecs_bayes.gcode import (
     compensated_path,
     correct_radius_error,
     nose_compensate,
+    parse_gcode,
+    parse_tool_table,
+    read_gcode,
+    read_tool_table,
     tip_offset,
 )
-from piecs_bayes.io import parse_gcode, parse_tool_table, read_gcode, read_tool_table
 
 DATA = Path(__file__).parent / "data" / "gcode"
 R = 0.5  # nose radius of the hand-computed programs (G42.1 D1)
@@ -207,7 +210,7 @@ def test_radius_error_correction_rules_and_tip():
 
 def test_radius_error_correction_of_a_resolved_program():
     """Read a program without compensation words, correct it, write it back."""
-    from piecs_bayes.io import write_path_program
+    from piecs_bayes.gcode import write_path_program
 
     resolved = parse_gcode(nose_compensate(parse_gcode(STEP.format(o=0), name="s")).text, name="r")
     fixed = correct_radius_error(

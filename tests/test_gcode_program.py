@@ -8,10 +8,15 @@ from pathlib import Path
 import pytest
 
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.export import write_text_atomic
-from piecs_bayes.export._program import adjust_program, map_blocks_to_profile
+from piecs_bayes.gcode import (
+    adjust_program,
+    lex_gcode,
+    map_blocks_to_profile,
+    parse_gcode,
+    read_gcode,
+)
 from piecs_bayes.geometry import Arc, Line, Profile
-from piecs_bayes.io import lex_gcode, parse_gcode, read_gcode
+from piecs_bayes.io import write_text_atomic
 
 DATA = Path(__file__).parent / "data" / "gcode" / "adjust"
 DEMO = Path(__file__).parent.parent / "data" / "demo"

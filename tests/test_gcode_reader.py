@@ -10,8 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.geometry import Arc, Line
-from piecs_bayes.io import (
+from piecs_bayes.gcode import (
     edit_line,
     format_number,
     lex_gcode,
@@ -20,7 +19,8 @@ from piecs_bayes.io import (
     read_gcode,
     read_tool_table,
 )
-from piecs_bayes.io._gcode_rs274 import parse_canon
+from piecs_bayes.gcode._rs274 import parse_canon
+from piecs_bayes.geometry import Arc, Line
 
 DATA = Path(__file__).parent / "data" / "gcode"
 CORPUS = sorted(DATA.glob("*.ngc")) + sorted(DATA.glob("*/*.ngc"))

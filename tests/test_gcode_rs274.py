@@ -17,9 +17,14 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import AnalysisError
-from piecs_bayes.geometry import compensated_path, nose_compensate
-from piecs_bayes.io import read_gcode, read_tool_table
-from piecs_bayes.io._gcode_rs274 import rs274_path, run_rs274
+from piecs_bayes.gcode import (
+    compensated_path,
+    nose_compensate,
+    read_gcode,
+    read_tool_table,
+    rs274_path,
+    run_rs274,
+)
 
 DATA = Path(__file__).parent / "data" / "gcode"
 TABLE = DATA / "tools.tbl"

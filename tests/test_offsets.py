@@ -2,15 +2,13 @@
 
 import pytest
 
+from piecs_bayes.compensate import OffsetSettings, ToolOffsets, tool_offset_update
 from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.export import (
-    OffsetSettings,
-    ToolOffsets,
     g10_fanuc,
     g10_linuxcnc,
     offsets_from_json,
     offsets_to_json,
-    tool_offset_update,
 )
 
 ST = OffsetSettings(null_band=0.002, feedback_gain=0.8, upper_limit=0.1)

@@ -11,8 +11,9 @@ from piecs_bayes.compensate import adjusted_path
 from piecs_bayes.errors import AnalysisError
 from piecs_bayes.fit import fit_profile
 from piecs_bayes.geometry import Profile, make_feature, profile_side
-from piecs_bayes.pipeline import compensate_study, fit_study, load_study
-from piecs_bayes.simulate import (
+from piecs_bayes.io import load_study
+from piecs_bayes.jobs import compensate_study, fit_study
+from piecs_bayes.jobs.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
     DEMO_TRANSFORM,
@@ -28,7 +29,7 @@ TRUTH = process_deviations(PROFILE, DEMO_ERRORS)
 
 
 def _machine_to_part_fit(sim, **kw):
-    from piecs_bayes.fit._features import to_part_frame
+    from piecs_bayes.fit import to_part_frame
 
     return fit_profile(
         PROFILE, sim["feature"], to_part_frame(DEMO_TRANSFORM, sim["points"]), ball_radius=1.0, **kw

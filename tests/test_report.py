@@ -19,9 +19,9 @@ from pypdf import PdfReader
 from scipy import stats
 
 from piecs_bayes.cli import main
-from piecs_bayes.export import report_files, report_html
-from piecs_bayes.export._report import SECTIONS
-from piecs_bayes.workflow import JobResults, run_job
+from piecs_bayes.export import report_files, report_html, summary_html, summary_rows
+from piecs_bayes.export._report_sections import SECTIONS
+from piecs_bayes.jobs import JobResults, run_job
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEMO = DATA / "demo" / "study.toml"
@@ -121,13 +121,13 @@ def test_bundle_is_immutable_and_complete(demo_results):
     assert roles == ["study", "probe", "program"]
     assert all(len(f.sha256) == 64 for f in res.inputs)
     assert res.versions["piecs_bayes"] and res.versions["python"]
-    rows = res.summary_rows()
+    rows = summary_rows(res)
     assert [r["feature"] for r in rows] == list(res.study.profile.ids)
     for r in rows:  # U = t(nu_eff) u at 95.45 % (k = 2 under the normal), Bayes beside
         k = stats.t.ppf(0.5 + 0.9544997361036416 / 2, r["dof"])
         assert 2.0 < k < 2.2 and r["U_um"] == pytest.approx(k * r["u_um"], rel=1e-9)
         assert abs(r["bayes_um"] - r["deviation_um"]) < 2 * r["U_um"]
-    assert "face_end" in repr(res) and "<table>" in res._repr_html_()
+    assert "face_end" in repr(res) and "<table>" in summary_html(res)
 
 
 def test_html_is_self_contained_with_every_section_and_figure(demo_report, demo_results):
@@ -287,7 +287,7 @@ def test_study_sets_the_sampler(tmp_path):
     import tomllib
 
     from piecs_bayes.errors import InputError
-    from piecs_bayes.pipeline import load_study
+    from piecs_bayes.io import load_study
 
     raw = tomllib.loads(DEMO.read_text())["fit"]
     fit = load_study(DEMO).fit

@@ -22,10 +22,11 @@ from piecs_bayes.fit import (
     fit_profile,
     fit_profiles,
     probe_sigma,
+    to_part_frame,
 )
-from piecs_bayes.fit._features import to_part_frame
-from piecs_bayes.pipeline import bayes_sources, fit_study, load_study
-from piecs_bayes.simulate import (
+from piecs_bayes.io import load_study
+from piecs_bayes.jobs import bayes_sources, fit_study
+from piecs_bayes.jobs.simulate import (
     DEMO_ERRORS,
     DEMO_TRANSFORM,
     demo_profile,

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from piecs_bayes.fit import fit_profile
-from piecs_bayes.pipeline import bayes_study, fit_study, load_study, toolpath_uncertainty
-from piecs_bayes.simulate import (
+from piecs_bayes.io import load_study
+from piecs_bayes.jobs import bayes_study, fit_study, toolpath_uncertainty
+from piecs_bayes.jobs.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
     demo_profile,

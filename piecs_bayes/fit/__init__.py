@@ -1,12 +1,12 @@
 """Fitting: general (robust) least squares on optimistix, feature models, Bayesian fits."""
 
+from ._batch import CHUNK_PARTS as CHUNK_PARTS
 from ._batch import BatchFit as BatchFit
 from ._batch import fit_profiles as fit_profiles
 from ._batch_bayes import fit_profiles_bayes as fit_profiles_bayes
 from ._batch_bayes import sample_posteriors as sample_posteriors
 from ._bayes import ConvergenceError as ConvergenceError
 from ._bayes import ConvergenceWarning as ConvergenceWarning
-from ._bayes import Posterior as Posterior
 from ._bayes import gaussian_loglik as gaussian_loglik
 from ._bayes import sample_posterior as sample_posterior
 from ._bayes import split_rhat as split_rhat
@@ -15,15 +15,22 @@ from ._bayes_profile import BayesProfileFit as BayesProfileFit
 from ._bayes_profile import fit_profile_bayes as fit_profile_bayes
 from ._bayes_profile import profile_log_posterior as profile_log_posterior
 from ._features import FeatureFit as FeatureFit
+from ._features import arc_distance as arc_distance
 from ._features import feature_residuals as feature_residuals
 from ._features import fit_feature as fit_feature
+from ._features import geometry_args as geometry_args
+from ._features import line_distance as line_distance
+from ._features import to_part_frame as to_part_frame
 from ._joint import TRANSFORM_PARAMS as TRANSFORM_PARAMS
 from ._joint import fit_profile_joint as fit_profile_joint
-from ._least_squares import LsqArrays as LsqArrays
-from ._least_squares import LsqResult as LsqResult
-from ._least_squares import Status as Status
 from ._least_squares import least_squares as least_squares
-from ._least_squares import solve_arrays as solve_arrays
+from ._lsq_core import solve_arrays as solve_arrays
+from ._lsq_result import LsqResult as LsqResult
+from ._lsq_types import LsqArrays as LsqArrays
+from ._lsq_types import Status as Status
+from ._measurement import SOURCE_EFFECTS as SOURCE_EFFECTS
+from ._measurement import probe_residuals as probe_residuals
+from ._posterior import Posterior as Posterior
 from ._priors import HalfNormal as HalfNormal
 from ._priors import LogNormal as LogNormal
 from ._priors import Normal as Normal
@@ -34,8 +41,11 @@ from ._priors import Uniform as Uniform
 from ._priors import prior_from_spec as prior_from_spec
 from ._profile_fit import ProfileFit as ProfileFit
 from ._profile_fit import fit_profile as fit_profile
+from ._robust import TUNING as TUNING
+from ._robust import normal_variance_factor as normal_variance_factor
 from ._sigma import DECLARED_DOF as DECLARED_DOF
 from ._sigma import ProbeSigma as ProbeSigma
 from ._sigma import coverage_factor as coverage_factor
 from ._sigma import effective_dof as effective_dof
+from ._sigma import pooled_residuals as pooled_residuals
 from ._sigma import probe_sigma as probe_sigma

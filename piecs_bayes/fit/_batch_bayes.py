@@ -41,15 +41,14 @@ from ..errors import AnalysisError, InputError
 from ._bayes import (
     ConvergenceError,
     ConvergenceWarning,
-    Posterior,
     _diagnose,
-    _frozen,
     _sqrt_psd,
     _start_cov,
     check_thin,
 )
 from ._diagnostics import problems as _problems
 from ._moves import DE_FRACTION, DE_SIGMA, STRETCH_A, check_moves, de_gamma0
+from ._posterior import Posterior, make_posterior
 
 __all__ = ["fit_profiles_bayes", "sample_posteriors"]
 
@@ -247,6 +246,69 @@ def sample_posteriors(
 
     **Returns:** one [`Posterior`][piecs_bayes.fit.Posterior] per part, in order.
     """
+    # Over 80 lines only through its docstring (every argument documented); the
+    # body is a short sequence of named steps.
+    x0, names, nwalkers, burn, thin_spec, thin, moves = _checked_run(
+        x0, names, args, on_fail, moves, nwalkers, nsteps, burn, thin, n_ensembles, backend
+    )
+    n_parts, ndim = x0.shape
+    cov0 = None if cov0 is None else np.asarray(cov0, dtype=float)
+    args = jax.tree_util.tree_map(jnp.asarray, args)
+    vec = _parts_walkers(log_prob)
+    k_ens, w = n_ensembles, nwalkers
+
+    def lp_fn(q):
+        return _evaluate(vec, q, args, n_parts, k_ens)
+
+    rng = np.random.default_rng(np.random.SeedSequence(seed))
+    coords, lp = _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, init_scale)
+    n_keep = (nsteps - burn + thin - 1) // thin
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=nsteps, desc=f"lockstep ensembles ({n_parts} parts x {k_ens})")
+    t0 = time.perf_counter()
+    if backend == "jax":
+        kept, kept_lp, n_acc, steps_run = _run_jax(
+            log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep,
+            int(rng.integers(2**31)), bar,
+        )  # fmt: skip
+    else:
+        kept, kept_lp, n_acc = _run_numpy(rng, coords, lp, lp_fn, moves, nsteps, burn, thin,
+                                          n_keep, bar)  # fmt: skip
+        steps_run = nsteps
+    wall = time.perf_counter() - t0
+    if bar is not None:
+        bar.close()
+
+    criteria = {"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor}
+    out, failed = [], []
+    for p in range(n_parts):
+        sl = slice(p * k_ens, (p + 1) * k_ens)
+        post = _part_posterior(
+            names, kept[:, sl].transpose(1, 0, 2, 3), kept_lp[:, sl].transpose(1, 0, 2),
+            (n_acc[sl] / steps_run).reshape(-1), thin, thin_spec, nsteps=nsteps, burn=burn,
+            wall_time=wall / n_parts, criteria=criteria,
+        )  # fmt: skip
+        out.append(post)
+        if post.problems:
+            failed.append((p, list(post.problems)))
+    if failed and on_fail != "ignore":
+        msg = f"MCMC runs of {len(failed)} of {n_parts} parts have not converged:\n" + "\n".join(
+            f"  part {p}: " + "; ".join(pr) for p, pr in failed
+        )
+        if on_fail == "raise":
+            raise ConvergenceError(msg, posterior=out)
+        warnings.warn(msg, ConvergenceWarning, stacklevel=2)
+    return out
+
+
+def _checked_run(x0, names, args, on_fail, moves, nwalkers, nsteps, burn, thin, n_ensembles,
+                 backend):  # fmt: skip
+    """`sample_posteriors`' checked settings: `x0` as a `(P, dim)` array, `names` as
+    a tuple, `nwalkers` and `burn` with their defaults, the thinning asked for and
+    the thinning of the run, `moves`."""
     x0 = np.asarray(x0, dtype=float)
     if x0.ndim != 2 or not np.all(np.isfinite(x0)):
         raise InputError(f"x0: expected a finite (parts, dim) array, got shape {x0.shape}")
@@ -280,22 +342,24 @@ def sample_posteriors(
         raise InputError(f"n_ensembles: got {n_ensembles}, expected >= 1")
     if backend not in ("jax", "numpy"):
         raise InputError(f"backend: got {backend!r}, expected 'jax' or 'numpy'")
-    cov0 = None if cov0 is None else np.asarray(cov0, dtype=float)
-    args = jax.tree_util.tree_map(jnp.asarray, args)
-    vec = _parts_walkers(log_prob)
-    k_ens, w = n_ensembles, nwalkers
+    return x0, names, nwalkers, burn, thin_spec, thin, moves
+
+
+def _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, init_scale):
+    """Per part, `k_ens` independent balls of `w` walkers around its `x0`; walkers
+    whose log posterior is not finite are redrawn. Returns the walkers
+    `(P*K, w, d)` and their log posteriors."""
+    n_parts, ndim = x0.shape
     n_e = n_parts * k_ens
 
-    def lp_fn(q):
-        return _evaluate(vec, q, args, n_parts, k_ens)
-
-    # starts: per part, K independent balls; redraw non-finite walkers
-    rng = np.random.default_rng(np.random.SeedSequence(seed))
-    coords = np.empty((n_e, w, ndim))
-    for p in range(n_parts):
+    def root_of(p):
         part_args = jax.tree_util.tree_map(lambda a, p=p: a[p], args)
         c = None if cov0 is None else cov0[p]
-        root = _sqrt_psd(_start_cov(log_prob, x0[p], part_args, c, ndim)) * init_scale
+        return _sqrt_psd(_start_cov(log_prob, x0[p], part_args, c, ndim)) * init_scale
+
+    coords = np.empty((n_e, w, ndim))
+    for p in range(n_parts):
+        root = root_of(p)
         noise = rng.standard_normal((k_ens, w, ndim))
         coords[p * k_ens : (p + 1) * k_ens] = x0[p] + noise @ root.T
     lp = lp_fn(coords)
@@ -306,9 +370,7 @@ def sample_posteriors(
         ens = np.nonzero(bad)[0] // k_ens
         # redraw around the part's x0 with its own ball
         for p in np.unique(ens):
-            part_args = jax.tree_util.tree_map(lambda a, p=p: a[p], args)
-            c = None if cov0 is None else cov0[p]
-            root = _sqrt_psd(_start_cov(log_prob, x0[p], part_args, c, ndim)) * init_scale
+            root = root_of(p)
             sel = bad & (np.arange(n_e)[:, None] // k_ens == p)
             coords[sel] = x0[p] + rng.standard_normal((int(sel.sum()), ndim)) @ root.T
         lp = np.where(bad, lp_fn(coords), lp)
@@ -318,96 +380,57 @@ def sample_posteriors(
             f"could not start walkers with a finite log_prob for part(s) {parts_bad} "
             "(after 100 redraws); check x0 and the prior supports, or lower init_scale"
         )
+    return coords, lp
 
-    n_keep = (nsteps - burn + thin - 1) // thin
+
+def _run_numpy(rng, coords, lp, lp_fn, moves, nsteps, burn, thin, n_keep, bar):
+    """The NumPy backend: red-blue half-steps of all ensembles, one jitted log
+    posterior call per half-step. Returns the kept walkers `(n_keep, E, W, d)`,
+    their log posteriors and the accepted moves per walker."""
+    n_e, w, ndim = coords.shape
     h = w // 2
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
+    kept = np.empty((n_keep, n_e, w, ndim))
+    kept_lp = np.empty((n_keep, n_e, w))
+    n_acc = np.zeros((n_e, w))
+    slot = 0
+    for step in range(nsteps):
+        perm = np.argsort(rng.random((n_e, w)), axis=1)  # emcee's random split
+        first, second = perm[:, :h], perm[:, h:]
+        rows = np.arange(n_e)[:, None]
+        acc = _half_step(rng, coords, lp, first, second, moves, ndim, lp_fn)
+        n_acc[rows, first] += acc
+        acc = _half_step(rng, coords, lp, second, first, moves, ndim, lp_fn)
+        n_acc[rows, second] += acc
+        if step >= burn and (step - burn) % thin == 0:
+            kept[slot], kept_lp[slot] = coords, lp
+            slot += 1
+        if bar is not None and (step % 50 == 49 or step == nsteps - 1):
+            bar.update(step + 1 - bar.n)
+    return kept, kept_lp, n_acc
 
-        bar = tqdm(total=nsteps, desc=f"lockstep ensembles ({n_parts} parts x {k_ens})")
-    t0 = time.perf_counter()
-    if backend == "jax":
-        kept, kept_lp, n_acc, steps_run = _run_jax(
-            log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep,
-            int(rng.integers(2**31)), bar,
-        )  # fmt: skip
-    else:
-        kept = np.empty((n_keep, n_e, w, ndim))
-        kept_lp = np.empty((n_keep, n_e, w))
-        n_acc = np.zeros((n_e, w))
-        steps_run = nsteps
-        slot = 0
-        for step in range(nsteps):
-            perm = np.argsort(rng.random((n_e, w)), axis=1)  # emcee's random split
-            first, second = perm[:, :h], perm[:, h:]
-            rows = np.arange(n_e)[:, None]
-            acc = _half_step(rng, coords, lp, first, second, moves, ndim, lp_fn)
-            n_acc[rows, first] += acc
-            acc = _half_step(rng, coords, lp, second, first, moves, ndim, lp_fn)
-            n_acc[rows, second] += acc
-            if step >= burn and (step - burn) % thin == 0:
-                kept[slot], kept_lp[slot] = coords, lp
-                slot += 1
-            if bar is not None and (step % 50 == 49 or step == nsteps - 1):
-                bar.update(step + 1 - bar.n)
-    wall = time.perf_counter() - t0
-    if bar is not None:
-        bar.close()
 
-    out, failed = [], []
-    for p in range(n_parts):
-        sl = slice(p * k_ens, (p + 1) * k_ens)
-        kp, lp_p, thin_p, tau, tau_max, reliable, ess, rhat = _diagnose(
-            kept[:, sl].transpose(1, 0, 2, 3),
-            kept_lp[:, sl].transpose(1, 0, 2),
-            thin,
-            thin_spec,
-            tau_factor,
-        )  # kp: (K, S, W, d)
-        # a chain too short (or stuck) for an estimate: tau unknown, never trusted
-        unknown = ~np.isfinite(tau_max)
-        tau = np.where(np.isfinite(tau), tau, float(nsteps))
-        tau_max = np.where(unknown, float(nsteps), tau_max)
-        reliable = reliable & ~unknown
-        ess = np.where(np.isfinite(ess), ess, 0.0)
-        problems = _problems(
-            names, tau_max, reliable, ess, rhat, kp.shape[1], nsteps=nsteps, burn=burn,
-            thin=thin_p, nwalkers=w, rhat_max=rhat_max, min_ess=min_ess, tau_factor=tau_factor,
-            n_ensembles=k_ens,
-        )  # fmt: skip
-        s = kp.shape[1]
-        out.append(
-            Posterior(
-                names=names,
-                chains=_frozen(kp.transpose(1, 0, 2, 3).reshape(s, k_ens * w, ndim)),
-                log_prob=_frozen(lp_p.transpose(1, 0, 2).reshape(s, k_ens * w)),
-                acceptance_fraction=_frozen((n_acc[sl] / steps_run).reshape(-1)),
-                tau=_frozen(tau),
-                tau_reliable=_frozen(reliable),
-                ess=_frozen(ess),
-                rhat=_frozen(rhat),
-                converged=not problems,
-                problems=tuple(problems),
-                n_ensembles=k_ens,
-                nwalkers=w,
-                nsteps=nsteps,
-                burn=burn,
-                thin=thin_p,
-                wall_time=wall / n_parts,
-                criteria={"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor},
-            )
-        )
-        if problems:
-            failed.append((p, problems))
-    if failed and on_fail != "ignore":
-        msg = f"MCMC runs of {len(failed)} of {n_parts} parts have not converged:\n" + "\n".join(
-            f"  part {p}: " + "; ".join(pr) for p, pr in failed
-        )
-        if on_fail == "raise":
-            raise ConvergenceError(msg)
-        warnings.warn(msg, ConvergenceWarning, stacklevel=2)
-    return out
+def _part_posterior(names, kept, kept_lp, acceptance, thin, thin_spec, *, nsteps, burn,
+                    wall_time, criteria) -> Posterior:  # fmt: skip
+    """One part's [`Posterior`][] from its ensembles' kept draws `(K, S, W, d)` and
+    log posteriors `(K, S, W)` (thinned further and diagnosed as
+    `sample_posterior` does)."""
+    kp, lp_p, thin_p, tau, tau_max, reliable, ess, rhat = _diagnose(
+        kept, kept_lp, thin, thin_spec, criteria["tau_factor"]
+    )  # kp: (K, S, W, d)
+    # a chain too short (or stuck) for an estimate: tau unknown, never trusted
+    unknown = ~np.isfinite(tau_max)
+    tau = np.where(np.isfinite(tau), tau, float(nsteps))
+    tau_max = np.where(unknown, float(nsteps), tau_max)
+    reliable = reliable & ~unknown
+    ess = np.where(np.isfinite(ess), ess, 0.0)
+    problems = _problems(
+        names, tau_max, reliable, ess, rhat, kp.shape[1], nsteps=nsteps, burn=burn,
+        thin=thin_p, nwalkers=kp.shape[2], n_ensembles=kp.shape[0], **criteria,
+    )  # fmt: skip
+    return make_posterior(
+        names, kp, lp_p, acceptance, (tau, reliable, ess, rhat), problems, nsteps=nsteps,
+        burn=burn, thin=thin_p, wall_time=wall_time, criteria=dict(criteria),
+    )  # fmt: skip
 
 
 def fit_profiles_bayes(

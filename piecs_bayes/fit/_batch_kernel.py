@@ -1,11 +1,11 @@
 r"""A lean solver for batches of small feature fits (`solver="fast"`/`"auto"` of `fit_profiles`).
 
 [`solve_arrays`][] runs optimistix's general solvers through the robust stages
-(plain, Huber, the loss; `_stages`). Under `vmap` a batch runs in lockstep and
+(plain, Huber, the loss; `stages`). Under `vmap` a batch runs in lockstep and
 every step pays the general machinery (trust-region bookkeeping, a QR per step):
 on the feature models (2-3 parameters, 4-16 points) LM takes ~125 steps and
 ~300 us per problem. This kernel minimises **the same staged objectives**
-$\tfrac12\sum_i s^2\rho(z_i)$ (same schedule `_stages`, same scale re-estimation
+$\tfrac12\sum_i s^2\rho(z_i)$ (same schedule `stages`, same scale re-estimation
 `_robust.mad_sigma` between stages, same losses from `_robust`) by Newton steps
 with the curvature $J^\top\mathrm{diag}(\max(\rho' + 2z\rho'', \kappa\rho'))J$
 (Gauss-Newton for the linear loss; exact on Huber's active set, so it finishes
@@ -36,7 +36,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _robust
-from ._least_squares import Status, _analyse, _stages, _statistics
+from ._lsq_core import stages
+from ._lsq_statistics import analyse, statistics
+from ._lsq_types import Status
 
 __all__ = ["kernel_solver"]
 
@@ -84,115 +86,128 @@ def _spd_solve(a, b):
 @functools.lru_cache(maxsize=64)
 def kernel_solver(fn, p: int, loss: str, rtol: float, atol: float):
     """Jitted `vmap` over problems of the lean staged solve; the same signature and
-    result (`LsqArrays`) as the batch engine's `_group_solver`."""
+    result (`LsqArrays`) as the batch engine's group solver: `solve(points, geom,
+    ball_radius, weights, scale, sigma)`, the first, second and fourth batched."""
     robust = _robust.loss_id(loss) != 0
-    ids, cs = _stages(loss) if robust else (np.zeros(1, np.int32), np.ones(1))
+    ids, cs = stages(loss) if robust else (np.zeros(1, np.int32), np.ones(1))
     final_id, tuning = int(ids[-1]), float(cs[-1])
-
-    def one(points, geom, ball_radius, w, scale, sigma):
-        args = (points, geom, ball_radius)
-        mask = w > 0
-        wsqrt = jnp.sqrt(jnp.where(mask, w, 0.0))
-        eps = jnp.finfo(float).eps
-
-        def weighted(y):
-            return jnp.where(mask, wsqrt * fn(y, args), 0.0)
-
-        def wrapped(y, s, idx):
-            e = weighted(y)
-            return e * jnp.sqrt(_robust.rho_over_z(idx, (e / s) ** 2))
-
-        def gn(y, s, idx, skip):
-            """Newton steps on the stage's objective $\\tfrac12\\sum s^2\\rho(z)$ with
-            the curvature $J^T \\mathrm{diag}(\\max(\\rho' + 2z\\rho'', 0)) J$ (Gauss-Newton
-            for the linear loss; for Huber exact on the active set, so it ends in a
-            few steps where Gauss-Newton on the wrapped residuals crawls), halved
-            until the objective does not rise; until the step is negligible or no
-            step lowers the objective (the final stationarity check judges it)."""
-            d2 = jnp.vectorize(jax.grad(lambda z: _robust.rho_prime(idx, z)))
-
-            def cost(yy):
-                e = weighted(yy)
-                return 0.5 * jnp.sum(e * e * _robust.rho_over_z(idx, (e / s) ** 2))
-
-            def body(state):
-                y, it, _, _ = state
-                e = weighted(y)
-                je = jax.jacfwd(weighted)(y)
-                z = (e / s) ** 2
-                rp = _robust.rho_prime(idx, z)
-                curv = jnp.maximum(rp + 2.0 * z * d2(z), CURVATURE_FLOOR * rp)
-                a = je.T @ (curv[:, None] * je)
-                d = jnp.sqrt(jnp.diagonal(a))
-                d = jnp.where(d > 0, d, 1.0)
-                step = _spd_solve(a / jnp.outer(d, d), -(je.T @ (rp * e)) / d) / d
-                c0 = 0.5 * jnp.sum(e * e * _robust.rho_over_z(idx, z))
-                limit = c0 * (1.0 + 16.0 * eps)
-
-                def halve(hs):
-                    f, c, k = hs
-                    return f * 0.5, cost(y + 0.5 * f * step), k + 1
-
-                def worse(hs):
-                    _, c, k = hs
-                    return ~(jnp.isfinite(c) & (c <= limit)) & (k < HALVINGS)
-
-                f, c, _ = jax.lax.while_loop(
-                    worse, halve, (jnp.asarray(1.0), cost(y + step), jnp.asarray(0))
-                )
-                good = jnp.isfinite(c) & (c <= limit) & jnp.all(jnp.isfinite(step))
-                y_new = jnp.where(good, y + f * step, y)
-                small = jnp.all(jnp.abs(step) <= rtol * jnp.abs(y) + atol)
-                finite = jnp.all(jnp.isfinite(y_new))
-                return y_new, it + 1, small | ~good, finite
-
-            def cond(state):
-                _, it, done, _ = state
-                return (it < MAX_ITER) & ~done
-
-            y, it, done, finite = jax.lax.while_loop(
-                cond, body, (y, jnp.asarray(0), jnp.asarray(skip), jnp.asarray(True))
-            )
-            return y, it, done & finite
-
-        def run(carry, idx, cs_run):
-            """Stages of one loss (a static index: one branch of the loss switch is
-            traced, not all of them) over the tuning constants `cs_run`."""
-
-            def stage(carry, stage_in):
-                y, ok_before, steps = carry
-                c, repeat = stage_in
-                if idx == 0:
-                    s = 1.0
-                else:  # a cond, not a where: the MAD (two sorts) only when estimated
-                    s = jax.lax.cond(
-                        jnp.isnan(scale),
-                        lambda: c * _robust.mad_sigma(weighted(y), mask),
-                        lambda: jnp.asarray(scale, dtype=float),
-                    )
-                # with a given scale a repeated stage is the same problem, started at
-                # its minimum: nothing to do (the engine's repeat moves ~1 ulp)
-                skip = repeat & ~jnp.isnan(scale)
-                y, it, ok = gn(y, jnp.asarray(s, dtype=float), idx, skip)
-                return (y, jnp.where(skip, ok_before, ok), steps + it), jnp.asarray(s, float)
-
-            repeats = jnp.arange(len(cs_run)) > 0
-            return jax.lax.scan(stage, carry, (jnp.asarray(cs_run), repeats))
-
-        carry = (jnp.zeros(p), jnp.asarray(True), jnp.asarray(0))
-        s_all = []
-        for idx, cs_run in _runs(ids, cs):
-            carry, s_run = run(carry, idx, cs_run)
-            s_all.append(s_run)
-        y, ok, steps = carry
-        s_all = jnp.concatenate(s_all)
-        s_final = s_all[-1] if robust else jnp.asarray(jnp.nan)
-        code = jnp.where(ok, int(Status.SUCCESSFUL), int(Status.MAX_STEPS_REACHED))
-
-        # the statistics of `_solve_core`, at the solution: the same functions
-        info = _analyse(fn, args, y, mask, wsqrt, s_final, final_id, None, robust)
-        return _statistics(
-            info, y, code, steps, s_final, mask, w, sigma, final_id, tuning, None, robust, atol
-        )
-
+    one = functools.partial(
+        _solve_one, fn, p, robust, tuple(_runs(ids, cs)), final_id, tuning, rtol, atol
+    )
     return jax.jit(jax.vmap(one, in_axes=(0, 0, None, 0, None, None)))
+
+
+def _solve_one(fn, p, robust, runs, final_id, tuning, rtol, atol,
+               points, geom, ball_radius, w, scale, sigma):  # fmt: skip
+    """One problem: the stages (`runs`) from zero, then `_solve_core`'s statistics."""
+    args = (points, geom, ball_radius)
+    mask = w > 0
+    wsqrt = jnp.sqrt(jnp.where(mask, w, 0.0))
+
+    def weighted(y):
+        return jnp.where(mask, wsqrt * fn(y, args), 0.0)
+
+    carry = (jnp.zeros(p), jnp.asarray(True), jnp.asarray(0))
+    s_all = []
+    for idx, cs_run in runs:
+        carry, s_run = _run(weighted, mask, scale, carry, idx, cs_run, rtol, atol)
+        s_all.append(s_run)
+    y, ok, steps = carry
+    s_all = jnp.concatenate(s_all)
+    s_final = s_all[-1] if robust else jnp.asarray(jnp.nan)
+    code = jnp.where(ok, int(Status.SUCCESSFUL), int(Status.MAX_STEPS_REACHED))
+
+    # the statistics of `_solve_core`, at the solution: the same functions
+    info = analyse(fn, args, y, mask, wsqrt, s_final, final_id, None, robust)
+    return statistics(
+        info, y, code, steps, s_final, mask, w, sigma, final_id, tuning, None, robust, atol
+    )
+
+
+def _run(weighted, mask, scale, carry, idx, cs_run, rtol, atol):
+    """Stages of one loss (a static index: one branch of the loss switch is traced,
+    not all of them) over the tuning constants `cs_run`, from `carry` =
+    `(y, ok, steps)`; returns the new carry and each stage's scale."""
+
+    def stage(carry, stage_in):
+        y, ok_before, steps = carry
+        c, repeat = stage_in
+        if idx == 0:
+            s = 1.0
+        else:  # a cond, not a where: the MAD (two sorts) only when estimated
+            s = jax.lax.cond(
+                jnp.isnan(scale),
+                lambda: c * _robust.mad_sigma(weighted(y), mask),
+                lambda: jnp.asarray(scale, dtype=float),
+            )
+        # with a given scale a repeated stage is the same problem, started at
+        # its minimum: nothing to do (the engine's repeat moves ~1 ulp)
+        skip = repeat & ~jnp.isnan(scale)
+        y, it, ok = _newton(weighted, y, jnp.asarray(s, dtype=float), idx, skip, rtol, atol)
+        return (y, jnp.where(skip, ok_before, ok), steps + it), jnp.asarray(s, float)
+
+    repeats = jnp.arange(len(cs_run)) > 0
+    return jax.lax.scan(stage, carry, (jnp.asarray(cs_run), repeats))
+
+
+def _newton(weighted, y, s, idx, skip, rtol, atol):
+    """Newton steps on the stage's objective $\\tfrac12\\sum s^2\\rho(z)$ with
+    the curvature $J^T \\mathrm{diag}(\\max(\\rho' + 2z\\rho'', 0)) J$ (Gauss-Newton
+    for the linear loss; for Huber exact on the active set, so it ends in a
+    few steps where Gauss-Newton on the wrapped residuals crawls), halved
+    until the objective does not rise; until the step is negligible or no
+    step lowers the objective (the final stationarity check judges it).
+    Returns the solution, the steps taken and whether it ended cleanly."""
+
+    def body(state):
+        y, it, _, _ = state
+        y_new, small, good, finite = _newton_step(weighted, y, s, idx, rtol, atol)
+        return y_new, it + 1, small | ~good, finite
+
+    def cond(state):
+        _, it, done, _ = state
+        return (it < MAX_ITER) & ~done
+
+    y, it, done, finite = jax.lax.while_loop(
+        cond, body, (y, jnp.asarray(0), jnp.asarray(skip), jnp.asarray(True))
+    )
+    return y, it, done & finite
+
+
+def _newton_step(weighted, y, s, idx, rtol, atol):
+    """One Newton step from `y`, halved (at most `HALVINGS` times) until the
+    objective does not rise beyond rounding: the new point, whether the step was
+    negligible, whether it was taken, and whether the new point is finite."""
+    eps = jnp.finfo(float).eps
+    d2 = jnp.vectorize(jax.grad(lambda z: _robust.rho_prime(idx, z)))
+
+    def cost(yy):
+        e = weighted(yy)
+        return 0.5 * jnp.sum(e * e * _robust.rho_over_z(idx, (e / s) ** 2))
+
+    e = weighted(y)
+    je = jax.jacfwd(weighted)(y)
+    z = (e / s) ** 2
+    rp = _robust.rho_prime(idx, z)
+    curv = jnp.maximum(rp + 2.0 * z * d2(z), CURVATURE_FLOOR * rp)
+    a = je.T @ (curv[:, None] * je)
+    d = jnp.sqrt(jnp.diagonal(a))
+    d = jnp.where(d > 0, d, 1.0)
+    step = _spd_solve(a / jnp.outer(d, d), -(je.T @ (rp * e)) / d) / d
+    c0 = 0.5 * jnp.sum(e * e * _robust.rho_over_z(idx, z))
+    limit = c0 * (1.0 + 16.0 * eps)
+
+    def halve(hs):
+        f, c, k = hs
+        return f * 0.5, cost(y + 0.5 * f * step), k + 1
+
+    def worse(hs):
+        _, c, k = hs
+        return ~(jnp.isfinite(c) & (c <= limit)) & (k < HALVINGS)
+
+    f, c, _ = jax.lax.while_loop(worse, halve, (jnp.asarray(1.0), cost(y + step), jnp.asarray(0)))
+    good = jnp.isfinite(c) & (c <= limit) & jnp.all(jnp.isfinite(step))
+    y_new = jnp.where(good, y + f * step, y)
+    small = jnp.all(jnp.abs(step) <= rtol * jnp.abs(y) + atol)
+    finite = jnp.all(jnp.isfinite(y_new))
+    return y_new, small, good, finite

@@ -36,7 +36,6 @@ import math
 import sys
 import time
 import warnings
-from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import jax
@@ -48,6 +47,7 @@ from ..errors import AnalysisError, InputError
 from ._diagnostics import arviz_layout, ess_and_rhat, split_rhat
 from ._diagnostics import problems as _problems
 from ._moves import check_moves, emcee_moves
+from ._posterior import Posterior, emcee_module, make_posterior
 
 __all__ = [
     "ConvergenceError",
@@ -67,7 +67,14 @@ class ConvergenceWarning(UserWarning):
 
 
 class ConvergenceError(AnalysisError):
-    """Raised instead of `ConvergenceWarning` when `on_fail="raise"`."""
+    """Raised instead of `ConvergenceWarning` when `on_fail="raise"`. Like emcee's
+    `AutocorrError`, which carries `tau`, it carries what was computed:
+    `posterior`, the [`Posterior`][] that failed the criteria (from
+    `sample_posteriors`, the list of every part's), also as `result`."""
+
+    def __init__(self, *args: object, posterior: Any = None):
+        super().__init__(*args, result=posterior)
+        self.posterior = posterior
 
 
 # --------------------------------------------------------------------------- likelihoods
@@ -164,204 +171,6 @@ def _diagnose(kept: np.ndarray, lps: np.ndarray, run_thin: int, thin, tau_factor
     total = run_thin * extra
     tau = taus.mean(axis=0) * run_thin
     return kept, lps, total, tau, taus.max(axis=0) * run_thin, reliable, ess, rhat
-
-
-# --------------------------------------------------------------------------- result
-
-
-def _frozen(a) -> np.ndarray:
-    a = np.array(a)
-    a.flags.writeable = False
-    return a
-
-
-@dataclass(frozen=True, repr=False, eq=False)
-class Posterior:
-    """Draws from a posterior and the diagnostics that say whether to trust them.
-
-    Fields:
-
-    - `names`: parameter names, in the order of the last axis.
-    - `chains`: kept draws, shape `(steps, n_ensembles * nwalkers, dim)` after
-      `burn` and `thin`; walkers `k*nwalkers ... (k+1)*nwalkers - 1` form
-      ensemble `k` (see `ensemble_chains`).
-    - `log_prob`: log posterior of each kept draw, shape `(steps, walkers)`.
-    - `acceptance_fraction`: per walker, over the whole run.
-    - `tau`: integrated autocorrelation time per parameter, in steps of the
-      unthinned run (mean over ensembles); `tau_reliable`: kept chain
-      $\\ge$ `tau_factor` $\\tau$ in every ensemble.
-    - `ess`: effective sample size per parameter; `rhat`: split $\\hat R$ across
-      independent ensembles.
-    - `converged`, `problems`: the verdict and, when false, why.
-    - `wall_time`: seconds spent sampling (compilation excluded).
-    """
-
-    names: tuple[str, ...]
-    chains: np.ndarray
-    log_prob: np.ndarray
-    acceptance_fraction: np.ndarray
-    tau: np.ndarray
-    tau_reliable: np.ndarray
-    ess: np.ndarray
-    rhat: np.ndarray
-    converged: bool
-    problems: tuple[str, ...]
-    n_ensembles: int
-    nwalkers: int
-    nsteps: int
-    burn: int
-    thin: int
-    wall_time: float
-    criteria: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def samples(self) -> np.ndarray:
-        """Flat draws, shape `(steps * walkers, dim)`."""
-        return self.chains.reshape(-1, self.chains.shape[-1])
-
-    @property
-    def ensemble_chains(self) -> np.ndarray:
-        """Draws as `(n_ensembles, steps, nwalkers, dim)`."""
-        s, _, d = self.chains.shape
-        return self.chains.reshape(s, self.n_ensembles, self.nwalkers, d).transpose(1, 0, 2, 3)
-
-    @property
-    def mean(self) -> np.ndarray:
-        return self.samples.mean(axis=0)
-
-    @property
-    def cov(self) -> np.ndarray:
-        return np.atleast_2d(np.cov(self.samples, rowvar=False))
-
-    @property
-    def sd(self) -> np.ndarray:
-        return self.samples.std(axis=0, ddof=1)
-
-    @property
-    def mcse(self) -> np.ndarray:
-        """Monte Carlo standard error of the mean: $\\mathrm{sd}/\\sqrt{\\mathrm{ESS}}$."""
-        return self.sd / np.sqrt(self.ess)
-
-    @property
-    def ess_per_second(self) -> float:
-        """Smallest ESS over parameters divided by the sampling wall time."""
-        return float(np.min(self.ess) / self.wall_time) if self.wall_time > 0 else math.inf
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        """Flat draws of one parameter by name."""
-        try:
-            j = self.names.index(name)
-        except ValueError:
-            raise KeyError(f"no parameter {name!r}; have {list(self.names)}") from None
-        return self.samples[:, j]
-
-    def interval(self, p: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
-        """Equal-tailed `p` credible interval per parameter: `(lower, upper)` arrays."""
-        if not 0.0 < p < 1.0:
-            raise InputError(f"interval: got p={p!r}, expected 0 < p < 1", value=p)
-        lo, hi = np.quantile(self.samples, [0.5 - p / 2, 0.5 + p / 2], axis=0)
-        return lo, hi
-
-    def summary(self) -> str:
-        lo, hi = self.interval(0.95)
-        w = max(8, *(len(n) for n in self.names))
-        head = f"{'':{w}}  {'mean':>11} {'sd':>10} {'2.5%':>11} {'97.5%':>11}"
-        lines = [head + f" {'tau':>7} {'ESS':>8} {'R-hat':>6}"]
-        for j, n in enumerate(self.names):
-            flag = "" if self.tau_reliable[j] else "*"
-            lines.append(
-                f"{n:{w}}  {self.mean[j]:11.5g} {self.sd[j]:10.4g} {lo[j]:11.5g} {hi[j]:11.5g}"
-                f" {self.tau[j]:6.1f}{flag or ' '} {self.ess[j]:8.0f} {self.rhat[j]:6.3f}"
-            )
-        if not all(self.tau_reliable):
-            lines.append("(* tau not trusted: kept chain shorter than 50 tau)")
-        return "\n".join(lines)
-
-    def __repr__(self) -> str:
-        s = self.chains.shape[0]
-        acc = float(np.mean(self.acceptance_fraction))
-        head = (
-            f"Posterior(converged={self.converged}, {self.n_ensembles} ensembles x "
-            f"{self.nwalkers} walkers x {s} kept steps (nsteps {self.nsteps}, burn "
-            f"{self.burn}, thin {self.thin}), acceptance {acc:.2f}, {self.wall_time:.2f} s, "
-            f"{self.ess_per_second:.3g} ESS/s)"
-        )
-        tail = "".join(f"\n  ! {p}" for p in self.problems)
-        return head + "\n" + self.summary() + tail
-
-    @property
-    def arviz_chains(self) -> np.ndarray:
-        """Draws as ArviZ chains, `(n_ensembles, nwalkers * steps, dim)`: one chain
-        per independent ensemble, its walkers' trajectories one after the other
-        (see `piecs_bayes.fit._diagnostics`). `ess` and `rhat` are ArviZ's
-        numbers on exactly these chains."""
-        return arviz_layout(self.ensemble_chains)
-
-    def to_arviz(self):
-        """ArviZ `InferenceData` (arviz 0.2x) whose own diagnostics are the package's.
-
-        The posterior group has one ArviZ *chain* per independent ensemble and
-        `draw` = the ensemble's walker trajectories one after the other
-        (`arviz_chains`); `arviz.ess(idata)` and `arviz.rhat(idata)` equal `ess`
-        and `rhat`. Walkers of one ensemble are coupled, so one chain per walker
-        (what `arviz.from_emcee` does) would make ArviZ's R-hat meaningless.
-        `sample_stats.lp` holds the log posterior; tau, the verdict and the run
-        settings are in the posterior's attrs.
-        """
-        az = _import_arviz()
-        chains = self.arviz_chains
-        lp = arviz_layout(self._ensemble_log_prob())
-        post = {n: chains[:, :, j] for j, n in enumerate(self.names)}
-        idata = az.from_dict(posterior=post, sample_stats={"lp": lp})
-        attrs = {
-            "sampler": f"emcee {_emcee().__version__} moves (piecs_bayes ensembles)",
-            "chain": "one independent ensemble",
-            "draw": "walker-major: walker w's kept step s is draw w * steps + s",
-            "n_ensembles": self.n_ensembles,
-            "nwalkers_per_ensemble": self.nwalkers,
-            "nsteps": self.nsteps,
-            "burn": self.burn,
-            "thin": self.thin,
-            "converged": int(self.converged),
-            "problems": "; ".join(self.problems),
-            "rhat": np.asarray(self.rhat),
-            "ess_bulk": np.asarray(self.ess),
-            "tau_steps": np.asarray(self.tau),
-            "tau_reliable": np.asarray(self.tau_reliable, dtype=int),
-            "wall_time_s": self.wall_time,
-            "parameter_names": list(self.names),
-        }
-        idata.posterior.attrs.update(attrs)
-        return idata
-
-    def _ensemble_log_prob(self) -> np.ndarray:
-        s = self.log_prob.shape[0]
-        return self.log_prob.reshape(s, self.n_ensembles, self.nwalkers).transpose(1, 0, 2)
-
-    def to_netcdf(self, path) -> str:
-        """Write `to_arviz()` to a netCDF file; `arviz.from_netcdf` reads it. For a file
-        that appears whole or not at all, write through
-        `piecs_bayes.export.write_file_atomic(path, posterior.to_netcdf)` (the CLI does)."""
-        return self.to_arviz().to_netcdf(str(path))
-
-
-def _emcee():
-    """emcee, imported on first use: it imports scipy.stats (~0.5 s), which a CLI
-    run that does not sample should not pay for."""
-    import emcee
-
-    return emcee
-
-
-def _import_arviz():
-    # arviz 0.2x announces its 1.x refactor with a FutureWarning on import: expected,
-    # not actionable for our users (we pin < 1), so silence exactly that one.
-    with warnings.catch_warnings():
-        warnings.filterwarnings(
-            "ignore", message=r"\s*ArviZ is undergoing a major refactor", category=FutureWarning
-        )
-        import arviz as az
-    return az
 
 
 # --------------------------------------------------------------------------- sampling
@@ -466,6 +275,44 @@ def sample_posterior(
 
     **Returns:** a `Posterior`.
     """
+    # Over 80 lines only through its docstring (every argument documented); the
+    # body is a short sequence of named steps.
+    x0, names, nwalkers, burn, thin_spec, thin, moves = _checked_run(
+        x0, names, on_fail, nwalkers, nsteps, burn, thin, n_ensembles, moves
+    )
+    vec = _vectorised(log_prob)
+
+    def f(p):
+        v = np.asarray(vec(jnp.asarray(p), args), dtype=float)
+        return np.where(np.isnan(v), -np.inf, v)
+
+    starts = _starts(f, log_prob, x0, args, cov0, nwalkers, n_ensembles, seed, init_scale)
+    kept, lps, acc, wall = _run_emcee(f, starts, x0.size, nsteps, burn, thin, moves, progress)
+    kept, lps, thin, tau, tau_max, reliable, ess, rhat = _diagnose(
+        np.stack(kept), np.stack(lps), thin, thin_spec, tau_factor
+    )  # kept: (K, S, W, d)
+    problems = _problems(
+        names, tau_max, reliable, ess, rhat, kept.shape[1], nsteps=nsteps, burn=burn, thin=thin,
+        nwalkers=nwalkers, rhat_max=rhat_max, min_ess=min_ess, tau_factor=tau_factor,
+        n_ensembles=n_ensembles,
+    )  # fmt: skip
+    post = make_posterior(
+        names, kept, lps, np.concatenate(acc), (tau, reliable, ess, rhat), problems,
+        nsteps=nsteps, burn=burn, thin=thin, wall_time=wall,
+        criteria={"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor},
+    )  # fmt: skip
+    if problems and on_fail != "ignore":
+        msg = "MCMC run has not converged:\n  " + "\n  ".join(problems)
+        if on_fail == "raise":
+            raise ConvergenceError(msg, posterior=post)
+        warnings.warn(msg, ConvergenceWarning, stacklevel=2)
+    return post
+
+
+def _checked_run(x0, names, on_fail, nwalkers, nsteps, burn, thin, n_ensembles, moves):
+    """`sample_posterior`'s checked settings: `x0` as a vector, `names` as a tuple,
+    `nwalkers` and `burn` with their defaults, the thinning asked for and the
+    thinning of the run, `moves`."""
     x0 = np.atleast_1d(np.asarray(x0, dtype=float))
     if x0.ndim != 1 or not np.all(np.isfinite(x0)):
         raise InputError(f"x0: expected a finite vector, got {x0!r}")
@@ -490,14 +337,13 @@ def sample_posterior(
         )
     if n_ensembles < 1:
         raise InputError(f"n_ensembles: got {n_ensembles}, expected >= 1")
-    moves = check_moves(moves)
+    return x0, names, nwalkers, burn, thin_spec, thin, check_moves(moves)
 
-    vec = _vectorised(log_prob)
 
-    def f(p):
-        v = np.asarray(vec(jnp.asarray(p), args), dtype=float)
-        return np.where(np.isnan(v), -np.inf, v)
-
+def _starts(f, log_prob, x0, args, cov0, nwalkers, n_ensembles, seed, init_scale):
+    """Per ensemble: walkers drawn around `x0` (redrawn where `f`, the vectorised
+    log posterior, is not finite), their log posteriors and a random seed."""
+    ndim = x0.size
     root = _sqrt_psd(_start_cov(log_prob, x0, args, cov0, ndim)) * init_scale
     children = np.random.SeedSequence(seed).spawn(n_ensembles)
     starts = []
@@ -517,11 +363,17 @@ def sample_posterior(
                 "(after 100 redraws); check x0 and the prior supports, or lower init_scale"
             )
         starts.append((p0, lp0, int(child.generate_state(1)[0])))
+    return starts
 
+
+def _run_emcee(f, starts, ndim, nsteps, burn, thin, moves, progress):
+    """One emcee run per start: the kept draws, log posteriors and acceptance
+    fractions of each ensemble, and the wall time."""
     kept, lps, acc = [], [], []
     t0 = time.perf_counter()
     for k, (p0, lp0, rs) in enumerate(starts):
-        emcee = _emcee()
+        emcee = emcee_module()
+        nwalkers = p0.shape[0]
         sampler = emcee.EnsembleSampler(nwalkers, ndim, f, vectorize=True, moves=emcee_moves(moves))
         state = emcee.State(p0, log_prob=lp0, random_state=np.random.RandomState(rs).get_state())
         sampler.run_mcmc(
@@ -529,7 +381,7 @@ def sample_posterior(
             nsteps,
             progress=progress,
             progress_kwargs={
-                "desc": f"emcee ensemble {k + 1}/{n_ensembles}",
+                "desc": f"emcee ensemble {k + 1}/{len(starts)}",
                 # a log file (CI, `make demo > log`) gets a line every 10 s, not 300
                 "mininterval": 0.1 if sys.stderr.isatty() else 10.0,
             },
@@ -537,39 +389,4 @@ def sample_posterior(
         kept.append(sampler.get_chain(discard=burn, thin=thin))
         lps.append(sampler.get_log_prob(discard=burn, thin=thin))
         acc.append(sampler.acceptance_fraction)
-    wall = time.perf_counter() - t0
-
-    kept, lps, thin, tau, tau_max, reliable, ess, rhat = _diagnose(
-        np.stack(kept), np.stack(lps), thin, thin_spec, tau_factor
-    )  # kept: (K, S, W, d)
-    problems = _problems(
-        names, tau_max, reliable, ess, rhat, kept.shape[1], nsteps=nsteps, burn=burn, thin=thin,
-        nwalkers=nwalkers, rhat_max=rhat_max, min_ess=min_ess, tau_factor=tau_factor,
-        n_ensembles=n_ensembles,
-    )  # fmt: skip
-    k, s, w, d = kept.shape
-    post = Posterior(
-        names=names,
-        chains=_frozen(kept.transpose(1, 0, 2, 3).reshape(s, k * w, d)),
-        log_prob=_frozen(lps.transpose(1, 0, 2).reshape(s, k * w)),
-        acceptance_fraction=_frozen(np.concatenate(acc)),
-        tau=_frozen(tau),
-        tau_reliable=_frozen(reliable),
-        ess=_frozen(ess),
-        rhat=_frozen(rhat),
-        converged=not problems,
-        problems=tuple(problems),
-        n_ensembles=n_ensembles,
-        nwalkers=nwalkers,
-        nsteps=nsteps,
-        burn=burn,
-        thin=thin,
-        wall_time=wall,
-        criteria={"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor},
-    )
-    if problems and on_fail != "ignore":
-        msg = "MCMC run has not converged:\n  " + "\n  ".join(problems)
-        if on_fail == "raise":
-            raise ConvergenceError(msg)
-        warnings.warn(msg, ConvergenceWarning, stacklevel=2)
-    return post
+    return kept, lps, acc, time.perf_counter() - t0

@@ -299,20 +299,7 @@ def fit_profile_bayes(
         with_approach=approach is not None,
         file=file,
     )
-    dim = len(lay.names)
-    x0 = np.zeros(dim)
-    var0 = np.zeros(dim)
-    for f, sl in lay.features:
-        x0[sl] = np.asarray(start[f.id])
-        c = None if start_cov is None else start_cov.get(f.id)
-        var0[sl] = np.diag(c) if c is not None else 1e-6
-    for name, k in lay.nuisance:
-        x0[k] = priors[name].mean
-        var0[k] = priors[name].sd ** 2
-    if lay.sigma_index is not None:
-        x0[lay.sigma_index] = sigma
-        var0[lay.sigma_index] = (0.1 * sigma) ** 2
-    var0 = np.where(var0 > 0, var0, 1e-12)
+    x0, _ = _start(lay, priors, start, start_cov, sigma)
     post = sample_posterior(
         log_prob,
         x0,
@@ -328,3 +315,23 @@ def fit_profile_bayes(
         moves=moves,
     )
     return BayesProfileFit(profile, post, lay, likelihood, part)
+
+
+def _start(lay: _Layout, priors: dict, start: dict, start_cov: dict | None, sigma: float):
+    """The walkers' start `x0` (least-squares deviations, prior means, `sigma`) and
+    per-parameter variances around it (not used: the sampler takes the inverse
+    Hessian at `x0`)."""
+    dim = len(lay.names)
+    x0 = np.zeros(dim)
+    var0 = np.zeros(dim)
+    for f, sl in lay.features:
+        x0[sl] = np.asarray(start[f.id])
+        c = None if start_cov is None else start_cov.get(f.id)
+        var0[sl] = np.diag(c) if c is not None else 1e-6
+    for name, k in lay.nuisance:
+        x0[k] = priors[name].mean
+        var0[k] = priors[name].sd ** 2
+    if lay.sigma_index is not None:
+        x0[lay.sigma_index] = sigma
+        var0[lay.sigma_index] = (0.1 * sigma) ** 2
+    return x0, np.where(var0 > 0, var0, 1e-12)

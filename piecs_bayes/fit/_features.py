@@ -27,12 +27,22 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import Feature, machine_to_part, rotate
-from ._least_squares import LsqResult, least_squares
+from ._least_squares import least_squares
+from ._lsq_result import LsqResult
 
-__all__ = ["FeatureFit", "fit_feature", "feature_residuals"]
+__all__ = [
+    "FeatureFit",
+    "arc_distance",
+    "feature_residuals",
+    "fit_feature",
+    "geometry_args",
+    "line_distance",
+    "padded_size",
+    "to_part_frame",
+]
 
 
-def _geometry_args(feature: Feature):
+def geometry_args(feature: Feature):
     """Nominal geometry of a feature as arrays (data, not static structure), so one
     compiled model serves every feature of a kind."""
     if feature.kind == "line":
@@ -45,12 +55,16 @@ def _geometry_args(feature: Feature):
     )
 
 
-def _line_distance(points, geom, dev):
+def line_distance(points, geom, dev):
+    """Signed distance of `points` to a line deviated by `dev` (offset, rotation),
+    `geom` from [`geometry_args`][] (positive outward)."""
     mid, normal, _, _ = geom
     return (points - mid - dev[0] * normal) @ rotate(normal, dev[1])
 
 
-def _arc_distance(points, geom, dev):
+def arc_distance(points, geom, dev):
+    """Signed distance of `points` to an arc deviated by `dev` (centre x, z,
+    radius), `geom` from [`geometry_args`][] (positive outward)."""
     centre, _, radius, sense = geom
     v = points - centre - dev[:2]
     return sense * (jnp.sqrt(jnp.sum(v * v, axis=-1)) - (radius + dev[2]))
@@ -67,7 +81,7 @@ def feature_residuals(kind: str, free: tuple[int, ...]):
     kind with the same point count reuses one compiled solve.
     """
     nparams = 2 if kind == "line" else 3
-    distance = _line_distance if kind == "line" else _arc_distance
+    distance = line_distance if kind == "line" else arc_distance
     idx = jnp.array(free, dtype=int)
 
     def fn(y, args):
@@ -215,23 +229,10 @@ def fit_feature(
     """
     if method not in ("lsq", "robust"):
         raise ValueError(f"unknown method {method!r}; expected 'lsq' or 'robust'")
-    for name in fix:
-        if name not in feature.param_names:
-            raise InputError(
-                f"cannot fix {name!r}: parameters are {', '.join(feature.param_names)}",
-                feature=feature.id,
-                value=name,
-            )
-    free = [i for i, n in enumerate(feature.param_names) if n not in fix]
+    free = _free_parameters(feature, fix)
     centres = np.asarray(centres, dtype=float)
     n = len(centres)
-    if n <= len(free):
-        raise InputError(
-            f"{n} points are too few to fit {len(free)} parameters with an uncertainty "
-            f"(need at least {len(free) + 1})",
-            feature=feature.id,
-            value=n,
-        )
+    _check_point_count(feature, n, len(free))
     fn = feature_residuals(feature.kind, tuple(free))
     n_pad = padded_size(n)
     padded = np.vstack([centres, np.repeat(centres[:1], n_pad - n, axis=0)])
@@ -239,7 +240,7 @@ def fit_feature(
     res = least_squares(
         fn,
         jnp.zeros(len(free)),
-        (jnp.asarray(padded), _geometry_args(feature), jnp.asarray(float(ball_radius))),
+        (jnp.asarray(padded), geometry_args(feature), jnp.asarray(float(ball_radius))),
         weights=weights,
         loss="linear" if method == "lsq" else loss,
         scale=scale,
@@ -274,6 +275,29 @@ def fit_feature(
         result=res,
         fixed=tuple(fix),
     )
+
+
+def _free_parameters(feature: Feature, fix: Sequence[str]) -> list[int]:
+    """Indices of the parameters not in `fix`; every fixed name must exist."""
+    for name in fix:
+        if name not in feature.param_names:
+            raise InputError(
+                f"cannot fix {name!r}: parameters are {', '.join(feature.param_names)}",
+                feature=feature.id,
+                value=name,
+            )
+    return [i for i, n in enumerate(feature.param_names) if n not in fix]
+
+
+def _check_point_count(feature: Feature, n: int, n_free: int) -> None:
+    """`n` points must leave at least one degree of freedom."""
+    if n <= n_free:
+        raise InputError(
+            f"{n} points are too few to fit {n_free} parameters with an uncertainty "
+            f"(need at least {n_free + 1})",
+            feature=feature.id,
+            value=n,
+        )
 
 
 def to_part_frame(study_transform, machine_points):

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import MachineTransform, Profile, machine_to_part
+from ..io import split_fix
 from ._features import FeatureFit
 from ._least_squares import least_squares
 from ._profile_fit import ProfileFit
@@ -29,7 +30,7 @@ TRANSFORM_PARAMS = ("x_centre", "z_offset", "scale_x", "scale_z", "rotation")
 def _parse_fix(profile: Profile, fix) -> dict[str, set]:
     out: dict[str, set] = {f.id: set() for f in profile.features}
     for item in fix:
-        fid, _, name = str(item).partition(".")
+        fid, name = split_fix(item)
         if fid not in out:
             raise InputError(
                 f"cannot fix {item!r}: unknown feature {fid!r}; "
@@ -83,13 +84,7 @@ def fit_profile_joint(
     transform corrections with standard uncertainties, and whose feature fits
     carry their blocks of the joint covariance.
     """
-    for name in free_transform:
-        if name not in TRANSFORM_PARAMS:
-            raise InputError(
-                f"unknown transform parameter {name!r}; "
-                f"expected one of {', '.join(TRANSFORM_PARAMS)}",
-                value=name,
-            )
+    _check_free_transform(free_transform)
     feature_ids = np.asarray(feature_ids).astype(str)
     pts = np.asarray(machine_points, dtype=float)
     lines = np.arange(1, len(pts) + 1) if lines is None else np.asarray(lines)
@@ -97,14 +92,75 @@ def fit_profile_joint(
     measured = [f for f in profile.features if np.any(feature_ids == f.id)]
     unmeasured = tuple(f.id for f in profile.features if f not in measured)
     order = np.concatenate([np.flatnonzero(feature_ids == f.id) for f in measured])
+    groups = _groups(measured, feature_ids, fixed)
+    free_t = tuple(TRANSFORM_PARAMS.index(n) for n in free_transform)
+    base = transform.as_array()
+    y0 = {
+        "features": {f.id: jnp.zeros(len(free)) for f, _, free in groups},
+        "transform": jnp.zeros(len(free_t)),
+    }
+    n_par = sum(len(fr) for _, _, fr in groups) + len(free_t)
+    if len(order) <= n_par:
+        raise InputError(f"{len(order)} points are too few for a joint fit of {n_par} parameters")
+    ref = float(sigma if sigma is not None else (declared if declared is not None else 1.0))
+    res = least_squares(
+        _joint_residuals(groups, free_t, base),
+        y0,
+        (jnp.asarray(pts[order]), jnp.asarray(float(ball_radius))),
+        loss=loss,
+        scale=scale,
+        sigma=ref,  # covariance at a reference sigma, rescaled to the probe sigma below
+    )
+    ps = _probe_sigma(res, n_par, sigma, declared, declared_dof, part)
+    cov = None if res.covariance is None else np.asarray(res.covariance) * (ps.value / ref) ** 2
+    t_final = _final_transform(base, free_t, res)
+    fits = {}
+    for f, sl, free in groups:
+        centres = np.asarray(machine_to_part(jnp.asarray(pts[order][sl]), t_final))
+        fits[f.id] = _feature_fit(
+            f, sl, free, res, cov, centres, lines[order][sl], ball_radius, loss, fixed[f.id]
+        )
+    out = ProfileFit(profile, fits, "joint", unmeasured, part, sigma=ps)
+    object.__setattr__(out, "transform", _transform_info(free_transform, res, cov))
+    object.__setattr__(out, "result", res)
+    return out
+
+
+def _check_free_transform(free_transform) -> None:
+    for name in free_transform:
+        if name not in TRANSFORM_PARAMS:
+            raise InputError(
+                f"unknown transform parameter {name!r}; "
+                f"expected one of {', '.join(TRANSFORM_PARAMS)}",
+                value=name,
+            )
+
+
+def _probe_sigma(res, n_par, sigma, declared, declared_dof, part):
+    """The probe sigma rule of `fit_profile` on the joint fit's inlier residuals."""
+    inl = np.ones(len(res.residuals), dtype=bool)
+    inl[list(res.outliers)] = False
+    return probe_sigma(
+        float(np.sum(np.asarray(res.residuals)[inl] ** 2)), int(inl.sum()) - n_par,
+        declared=declared if sigma is None else sigma, declared_dof=declared_dof,
+        known=sigma is not None, what=f"part {part!r}" if part is not None else "part",
+    )  # fmt: skip
+
+
+def _groups(measured, feature_ids, fixed) -> list[tuple]:
+    """`(feature, slice of its points in the fit's point order, free indices)`."""
     groups, start = [], 0
     for f in measured:
         k = int(np.sum(feature_ids == f.id))
         free = tuple(i for i, n in enumerate(f.param_names) if n not in fixed[f.id])
         groups.append((f, slice(start, start + k), free))
         start += k
-    free_t = tuple(TRANSFORM_PARAMS.index(n) for n in free_transform)
-    base = transform.as_array()
+    return groups
+
+
+def _joint_residuals(groups, free_t, base):
+    """`fn(y, (points, ball_radius))` of the joint fit: every feature's residuals
+    (its points in the machine->part transform `base` + the freed corrections)."""
 
     def fn(y, args):
         points, rb = args
@@ -116,80 +172,56 @@ def fit_profile_joint(
             res.append(f.signed_distance(part_pts[sl], dev) - rb)
         return jnp.concatenate(res)
 
-    y0 = {
-        "features": {f.id: jnp.zeros(len(free)) for f, _, free in groups},
-        "transform": jnp.zeros(len(free_t)),
-    }
-    n_par = sum(len(fr) for _, _, fr in groups) + len(free_t)
-    if len(order) <= n_par:
-        raise InputError(f"{len(order)} points are too few for a joint fit of {n_par} parameters")
-    ref = float(sigma if sigma is not None else (declared if declared is not None else 1.0))
-    res = least_squares(
-        fn,
-        y0,
-        (jnp.asarray(pts[order]), jnp.asarray(float(ball_radius))),
-        loss=loss,
-        scale=scale,
-        sigma=ref,  # covariance at a reference sigma, rescaled to the probe sigma below
-    )
-    inl = np.ones(len(order), dtype=bool)
-    inl[list(res.outliers)] = False
-    ps = probe_sigma(
-        float(np.sum(np.asarray(res.residuals)[inl] ** 2)), int(inl.sum()) - n_par,
-        declared=declared if sigma is None else sigma, declared_dof=declared_dof,
-        known=sigma is not None, what=f"part {part!r}" if part is not None else "part",
-    )  # fmt: skip
-    # Map the flat covariance (ravel order: features by sorted id, then transform)
+    return fn
+
+
+def _feature_fit(f, sl, free, res, cov, centres, lines, ball_radius, loss, fixed) -> FeatureFit:
+    """The `FeatureFit` of feature `f` (points `sl` of the joint fit `res`, part-frame
+    `centres` under the fitted transform) with its block of the joint covariance
+    `cov` (ravel order: features by sorted id, then the transform)."""
     names = res.param_names
-    cov = None if res.covariance is None else np.asarray(res.covariance) * (ps.value / ref) ** 2
-    fits = {}
+    values = np.zeros(f.nparams)
+    values[list(free)] = np.asarray(res.params["features"][f.id])
+    fcov = None
+    if cov is not None:
+        idx = [names.index(f"features.{f.id}[{j}]") for j in range(len(free))]
+        fcov = np.zeros((f.nparams, f.nparams))
+        fcov[np.ix_(free, free)] = cov[np.ix_(idx, idx)]
+    surface = centres - ball_radius * np.asarray(
+        f.outward_normal(jnp.asarray(centres), jnp.asarray(values))
+    )
+    nominal = np.asarray(f.closest_point(jnp.asarray(surface)))
     outl = set(res.outliers)
-    for f, sl, free in groups:
-        values = np.zeros(f.nparams)
-        values[list(free)] = np.asarray(res.params["features"][f.id])
-        fcov = None
-        if cov is not None:
-            idx = [names.index(f"features.{f.id}[{j}]") for j in range(len(free))]
-            fcov = np.zeros((f.nparams, f.nparams))
-            fcov[np.ix_(free, free)] = cov[np.ix_(idx, idx)]
-        centres = np.asarray(
-            machine_to_part(jnp.asarray(pts[order][sl]), _final_transform(base, free_t, res))
-        )
-        surface = centres - ball_radius * np.asarray(
-            f.outward_normal(jnp.asarray(centres), jnp.asarray(values))
-        )
-        nominal = np.asarray(f.closest_point(jnp.asarray(surface)))
-        local_out = np.array(
-            [i - sl.start for i in range(sl.start, sl.stop) if i in outl], dtype=int
-        )
-        fits[f.id] = FeatureFit(
-            feature=f,
-            values=values,
-            std_errors=None if fcov is None else np.sqrt(np.diag(fcov)),
-            covariance=fcov,
-            points=centres,
-            residuals=np.asarray(res.residuals)[sl],
-            weights=np.asarray(res.weights)[sl],
-            outliers=local_out,
-            lines=lines[order][sl],
-            nominal_points=nominal,
-            error_vectors=surface - nominal,
-            method="joint/" + (loss if loss != "linear" else "lsq"),
-            result=res,
-            fixed=tuple(sorted(fixed[f.id])),
-        )
+    local_out = np.array([i - sl.start for i in range(sl.start, sl.stop) if i in outl], dtype=int)
+    return FeatureFit(
+        feature=f,
+        values=values,
+        std_errors=None if fcov is None else np.sqrt(np.diag(fcov)),
+        covariance=fcov,
+        points=centres,
+        residuals=np.asarray(res.residuals)[sl],
+        weights=np.asarray(res.weights)[sl],
+        outliers=local_out,
+        lines=lines,
+        nominal_points=nominal,
+        error_vectors=surface - nominal,
+        method="joint/" + (loss if loss != "linear" else "lsq"),
+        result=res,
+        fixed=tuple(sorted(fixed)),
+    )
+
+
+def _transform_info(free_transform, res, cov) -> dict:
+    """`{name: {"value", "std_error"}}` of the freed transform corrections."""
     tvals = np.asarray(res.params["transform"])
     tinfo = {}
     for k, name in enumerate(free_transform):
         se = None
         if cov is not None:
-            i = names.index(f"transform[{k}]")
+            i = res.param_names.index(f"transform[{k}]")
             se = float(np.sqrt(cov[i, i]))
         tinfo[name] = {"value": float(tvals[k]), "std_error": se}
-    out = ProfileFit(profile, fits, "joint", unmeasured, part, sigma=ps)
-    object.__setattr__(out, "transform", tinfo)
-    object.__setattr__(out, "result", res)
-    return out
+    return tinfo
 
 
 def _final_transform(base, free_t, res):

@@ -329,47 +329,8 @@ def prior_from_spec(name: str, spec: dict, *, file: str | None = None) -> Prior:
     missing `dist`, an unknown distribution, a missing or unknown key, a value
     that is not a finite number, or a non-positive scale.
     """
-    if not isinstance(spec, dict):
-        raise InputError(
-            f'prior {name!r}: expected a table like {{dist = "normal", mean = 0, sd = 1}}, '
-            f"got {spec!r}",
-            file=file,
-            value=spec,
-        )
-    if "dist" not in spec:
-        raise InputError(
-            f"prior {name!r}: key 'dist' missing; expected one of {sorted(_KEYS)}",
-            file=file,
-        )
-    raw = spec["dist"]
-    dist = _ALIASES.get(str(raw).lower(), str(raw).lower()) if isinstance(raw, str) else None
-    if dist not in _KEYS:
-        raise InputError(
-            f"prior {name!r}: key 'dist' = {raw!r}: unknown distribution, expected one of "
-            f"{sorted(_KEYS)}",
-            file=file,
-            value=raw,
-        )
-    given = {k for k in spec if k != "dist"}
-    choices = _KEYS[dist]
-    keys = next((ks for ks in choices if set(ks) == given), None)
-    if keys is None:
-        allowed = set().union(*map(set, choices))
-        unknown = sorted(given - allowed)
-        if unknown:
-            raise InputError(
-                f"prior {name!r}: key {unknown[0]!r} = {spec[unknown[0]]!r} is not a parameter "
-                f"of a {dist} prior; expected " + " or ".join(map(str, map(list, choices))),
-                file=file,
-                value=spec[unknown[0]],
-            )
-        missing = sorted(set(choices[0]) - given)
-        raise InputError(
-            f"prior {name!r}: a {dist} prior needs keys "
-            + " or ".join(map(str, map(list, choices)))
-            + f"; missing {missing}",
-            file=file,
-        )
+    dist = _distribution(name, spec, file)
+    keys = _parameter_keys(name, spec, dist, file)
     v = {k: _number(name, k, spec[k], file) for k in keys}
     if dist == "normal":
         return Normal(v["mean"], _positive(name, "sd", v["sd"], file))
@@ -393,3 +354,54 @@ def prior_from_spec(name: str, spec: dict, *, file: str | None = None) -> Prior:
         return ScaledInvChi2(nu, _positive(name, "scale", v["scale"], file))
     loc = v.get("loc", v.get("mean"))
     return StudentT(nu, loc, _positive(name, "scale", v["scale"], file))
+
+
+def _distribution(name: str, spec, file) -> str:
+    """The canonical distribution name of `spec` (a table with a known `dist`)."""
+    if not isinstance(spec, dict):
+        raise InputError(
+            f'prior {name!r}: expected a table like {{dist = "normal", mean = 0, sd = 1}}, '
+            f"got {spec!r}",
+            file=file,
+            value=spec,
+        )
+    if "dist" not in spec:
+        raise InputError(
+            f"prior {name!r}: key 'dist' missing; expected one of {sorted(_KEYS)}",
+            file=file,
+        )
+    raw = spec["dist"]
+    dist = _ALIASES.get(str(raw).lower(), str(raw).lower()) if isinstance(raw, str) else None
+    if dist not in _KEYS:
+        raise InputError(
+            f"prior {name!r}: key 'dist' = {raw!r}: unknown distribution, expected one of "
+            f"{sorted(_KEYS)}",
+            file=file,
+            value=raw,
+        )
+    return dist
+
+
+def _parameter_keys(name: str, spec: dict, dist: str, file) -> tuple[str, ...]:
+    """The parameter keys of `spec`: exactly one of the key sets of `dist`."""
+    given = {k for k in spec if k != "dist"}
+    choices = _KEYS[dist]
+    keys = next((ks for ks in choices if set(ks) == given), None)
+    if keys is None:
+        allowed = set().union(*map(set, choices))
+        unknown = sorted(given - allowed)
+        if unknown:
+            raise InputError(
+                f"prior {name!r}: key {unknown[0]!r} = {spec[unknown[0]]!r} is not a parameter "
+                f"of a {dist} prior; expected " + " or ".join(map(str, map(list, choices))),
+                file=file,
+                value=spec[unknown[0]],
+            )
+        missing = sorted(set(choices[0]) - given)
+        raise InputError(
+            f"prior {name!r}: a {dist} prior needs keys "
+            + " or ".join(map(str, map(list, choices)))
+            + f"; missing {missing}",
+            file=file,
+        )
+    return keys

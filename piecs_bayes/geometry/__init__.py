@@ -8,12 +8,6 @@ from ._curves import rotate as rotate
 from ._intersect import intersect_circle_circle as intersect_circle_circle
 from ._intersect import intersect_line_circle as intersect_line_circle
 from ._intersect import intersect_line_line as intersect_line_line
-from ._nosecomp import NoseCompResult as NoseCompResult
-from ._nosecomp import PathMove as PathMove
-from ._nosecomp import compensated_path as compensated_path
-from ._nosecomp import correct_radius_error as correct_radius_error
-from ._nosecomp import nose_compensate as nose_compensate
-from ._nosecomp import tip_offset as tip_offset
 from ._profile import Profile as Profile
 from ._profile import ProfileError as ProfileError
 from ._profile import make_feature as make_feature

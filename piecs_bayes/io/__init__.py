@@ -1,31 +1,19 @@
-"""Read and validate what the user brings: study files, probe CSVs, part programs."""
+"""Read and validate what the user brings (study files, probe CSVs; programs: `gcode`),
+and write files atomically, never over an input."""
 
-from ._gcode import GcodeText as GcodeText
-from ._gcode import SourceLine as SourceLine
-from ._gcode import Word as Word
-from ._gcode import edit_line as edit_line
-from ._gcode import format_number as format_number
-from ._gcode import lex_gcode as lex_gcode
-from ._gcode_modal import CompEvent as CompEvent
-from ._gcode_modal import CompSetting as CompSetting
-from ._gcode_modal import GcodeProgram as GcodeProgram
-from ._gcode_modal import LineState as LineState
-from ._gcode_modal import Motion as Motion
-from ._gcode_modal import parse_gcode as parse_gcode
-from ._gcode_modal import read_gcode as read_gcode
-from ._gcode_rs274 import CanonMove as CanonMove
-from ._gcode_rs274 import Rs274Result as Rs274Result
-from ._gcode_rs274 import rs274_path as rs274_path
-from ._gcode_rs274 import run_rs274 as run_rs274
-from ._gcode_tools import ToolEntry as ToolEntry
-from ._gcode_tools import parse_tool_table as parse_tool_table
-from ._gcode_tools import read_tool_table as read_tool_table
-from ._gcode_write import write_path_program as write_path_program
+from ._atomic import write_bytes_atomic as write_bytes_atomic
+from ._atomic import write_file_atomic as write_file_atomic
+from ._atomic import write_text_atomic as write_text_atomic
+from ._plausibility import PlausibilityWarning as PlausibilityWarning
+from ._plausibility import check_probe_data as check_probe_data
 from ._probe import ProbeData as ProbeData
 from ._probe import read_probe_csv as read_probe_csv
-from ._study import CompensationSettings as CompensationSettings
-from ._study import FitSettings as FitSettings
-from ._study import ProbeSpec as ProbeSpec
-from ._study import ProgramSettings as ProgramSettings
-from ._study import Study as Study
+from ._settings import CompensationSettings as CompensationSettings
+from ._settings import FitSettings as FitSettings
+from ._settings import ProbeSpec as ProbeSpec
+from ._settings import ProgramSettings as ProgramSettings
+from ._settings import Study as Study
+from ._settings import parse_fix as parse_fix
+from ._settings import split_fix as split_fix
 from ._study import load_study as load_study
+from ._text import read_bytes as read_bytes

@@ -125,7 +125,32 @@ def read_probe_csv(
     rows = list(_lines_without_comments(path, encoding))
     if not rows:
         raise InputError("probe file is empty (a header row 'feature,x,z' is required)", file=name)
-    header_line, header_raw = rows[0]
+    header_line, header = _header(rows[0], name)
+    if len(rows) == 1:
+        raise InputError("probe file has a header but no data rows", file=name)
+    scale = _MM_PER[units]
+    xscale = scale / 2.0 if x_mode == "diameter" else scale
+    part_default = default_part if default_part is not None else path.stem
+    cols, lines = _columns(rows[1:], header, name, features)
+    n = len(lines)
+    pts = np.column_stack([np.array(cols["x"]) * xscale, np.array(cols["z"]) * scale])
+    approach = _approach(cols, lines, name, header_line)
+    return ProbeData(
+        file=name,
+        feature=np.array(cols["feature"], dtype=object).astype(str),
+        points=pts,
+        lines=np.array(lines, dtype=int),
+        part=np.array(cols.get("part", [part_default] * n), dtype=object).astype(str),
+        approach=approach,
+        time=np.array(cols["time"]) if "time" in cols else None,
+        temperature=np.array(cols["temperature"]) if "temperature" in cols else None,
+    )
+
+
+def _header(row: tuple[int, str], name: str) -> tuple[int, list[str]]:
+    """The header's line number and its column names (lower case): the required
+    columns present, none twice, none unknown."""
+    header_line, header_raw = row
     header = [h.strip().lower() for h in next(csv.reader([header_raw]))]
     for col in REQUIRED_COLUMNS:
         if col not in header:
@@ -150,15 +175,15 @@ def read_probe_csv(
             line=header_line,
             column=unknown[0],
         )
+    return header_line, header
+
+
+def _columns(rows, header: list[str], name: str, features) -> tuple[dict[str, list], list[int]]:
+    """The data rows' cells by column (numbers as floats) and their line numbers."""
     idx = {c: header.index(c) for c in header}
-    if len(rows) == 1:
-        raise InputError("probe file has a header but no data rows", file=name)
-    scale = _MM_PER[units]
-    xscale = scale / 2.0 if x_mode == "diameter" else scale
-    part_default = default_part if default_part is not None else path.stem
     cols: dict[str, list] = {c: [] for c in header}
     lines = []
-    for lineno, raw in rows[1:]:
+    for lineno, raw in rows:
         cells = next(csv.reader([raw]))
         if len(cells) != len(header):
             raise InputError(
@@ -167,64 +192,60 @@ def read_probe_csv(
                 line=lineno,
             )
         for col, j in idx.items():
-            cell = cells[j].strip()
-            if col in _NUMERIC:
-                try:
-                    val = float(cell)
-                except ValueError:
-                    raise InputError(
-                        f"not a number: {cell!r}", file=name, line=lineno, column=col, value=cell
-                    ) from None
-                if not math.isfinite(val):
-                    raise InputError(
-                        f"value must be finite, got {cell!r}",
-                        file=name,
-                        line=lineno,
-                        column=col,
-                        value=cell,
-                    )
-                cols[col].append(val)
-            else:
-                if not cell:
-                    raise InputError("empty cell", file=name, line=lineno, column=col)
-                if col == "feature" and features is not None and cell not in features:
-                    raise InputError(
-                        f"unknown feature id {cell!r}; the study's profile has "
-                        f"{', '.join(features)}",
-                        file=name,
-                        line=lineno,
-                        column=col,
-                        feature=cell,
-                        value=cell,
-                    )
-                cols[col].append(cell)
+            cols[col].append(_cell(cells[j].strip(), col, lineno, name, features))
         lines.append(lineno)
-    n = len(lines)
-    pts = np.column_stack([np.array(cols["x"]) * xscale, np.array(cols["z"]) * scale])
-    approach = None
-    if "approach_x" in cols or "approach_z" in cols:
-        if not ("approach_x" in cols and "approach_z" in cols):
+    return cols, lines
+
+
+def _cell(cell: str, col: str, lineno: int, name: str, features):
+    """One cell: a finite float in a numeric column, else a non-empty string (a
+    feature id of the study in the `feature` column)."""
+    if col in _NUMERIC:
+        try:
+            val = float(cell)
+        except ValueError:
             raise InputError(
-                "give both approach_x and approach_z, or neither", file=name, line=header_line
-            )
-        approach = np.column_stack([cols["approach_x"], cols["approach_z"]]).astype(float)
-        norms = np.linalg.norm(approach, axis=1)
-        bad = np.flatnonzero(norms == 0)
-        if bad.size:
+                f"not a number: {cell!r}", file=name, line=lineno, column=col, value=cell
+            ) from None
+        if not math.isfinite(val):
             raise InputError(
-                "approach direction is the zero vector",
+                f"value must be finite, got {cell!r}",
                 file=name,
-                line=int(lines[bad[0]]),
-                column="approach_x",
+                line=lineno,
+                column=col,
+                value=cell,
             )
-        approach = approach / norms[:, None]
-    return ProbeData(
-        file=name,
-        feature=np.array(cols["feature"], dtype=object).astype(str),
-        points=pts,
-        lines=np.array(lines, dtype=int),
-        part=np.array(cols.get("part", [part_default] * n), dtype=object).astype(str),
-        approach=approach,
-        time=np.array(cols["time"]) if "time" in cols else None,
-        temperature=np.array(cols["temperature"]) if "temperature" in cols else None,
-    )
+        return val
+    if not cell:
+        raise InputError("empty cell", file=name, line=lineno, column=col)
+    if col == "feature" and features is not None and cell not in features:
+        raise InputError(
+            f"unknown feature id {cell!r}; the study's profile has {', '.join(features)}",
+            file=name,
+            line=lineno,
+            column=col,
+            feature=cell,
+            value=cell,
+        )
+    return cell
+
+
+def _approach(cols: dict[str, list], lines: list[int], name: str, header_line: int):
+    """Unit approach directions `(n, 2)` from `approach_x`, `approach_z`, or None."""
+    if "approach_x" not in cols and "approach_z" not in cols:
+        return None
+    if not ("approach_x" in cols and "approach_z" in cols):
+        raise InputError(
+            "give both approach_x and approach_z, or neither", file=name, line=header_line
+        )
+    approach = np.column_stack([cols["approach_x"], cols["approach_z"]]).astype(float)
+    norms = np.linalg.norm(approach, axis=1)
+    bad = np.flatnonzero(norms == 0)
+    if bad.size:
+        raise InputError(
+            "approach direction is the zero vector",
+            file=name,
+            line=int(lines[bad[0]]),
+            column="approach_x",
+        )
+    return approach / norms[:, None]

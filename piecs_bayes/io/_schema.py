@@ -5,7 +5,7 @@ refuses an unknown section or key with its path and the nearest valid name
 (``compensation.max_corection: unknown key; did you mean 'max_correction'?``),
 so that a typo never silently falls back to a default. The values themselves
 are read and checked (type, finiteness, range) by `_study.load_study` and the
-job sections' table `_JOB_KEYS`; this module only knows the names.
+job sections' table `_job_sections.JOB_KEYS`; this module only knows the names.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from ..errors import InputError
 __all__ = ["DIST_KEYS", "SECTIONS", "check_keys", "check_source", "nearest"]
 
 #: section -> its keys; "profile.feature" is each [[profile.feature]] table.
-#: `uncertainty` holds one table per source (names in `_study.KNOWN_SOURCES`) whose
-#: keys the prior reader checks; the job sections' keys come from `_study._JOB_KEYS`.
+#: `uncertainty` holds one table per source (names in `_sections.KNOWN_SOURCES`) whose
+#: keys the prior reader checks; the job sections' keys come from `_job_sections.JOB_KEYS`.
 SECTIONS: dict[str, tuple[str, ...]] = {
     "study": ("name", "units", "probe_files", "part_program", "encoding"),
     "profile": ("kind", "x_mode", "tangent_tolerance_deg", "feature"),

@@ -23,17 +23,23 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..compensate._mirror import adjusted_geometry
+from ..compensate import adjusted_geometry
 from ..errors import InputError
-from ..fit._measurement import SOURCE_EFFECTS, probe_residuals
-from ..fit._robust import normal_variance_factor
-from ..fit._sigma import coverage_factor, effective_dof
+from ..fit import (
+    SOURCE_EFFECTS,
+    coverage_factor,
+    effective_dof,
+    normal_variance_factor,
+    probe_residuals,
+)
 from ..geometry import Line, MachineTransform, Profile
 from ._bands import Bands, bands_from_samples, bands_linear
 from ._propagate import uncertainty_budget
 
 __all__ = [
+    "LINEARISED_SOURCES",
     "PathGrid",
+    "path_jacobian_function",
     "path_grid",
     "path_function",
     "ToolpathUncertainty",
@@ -216,6 +222,21 @@ def _path_jacobian(profile: Profile, grid: PathGrid, gain_key):
     return jax.jit(lambda d: (path_flat(d), jax.jacfwd(path_flat)(d)))
 
 
+@functools.lru_cache(maxsize=16)
+def _batched_path_jacobian(profile: Profile, grid: PathGrid, gain_key):
+    return jax.jit(jax.vmap(_path_jacobian(profile, grid, gain_key)))
+
+
+def path_jacobian_function(profile: Profile, grid: PathGrid, gain=1.0, *, batched=False):
+    """The jitted map ``flat deviations -> (path values, their Jacobian)`` of the
+    adjusted path (vertices then grid offsets), compiled once per profile, grid and
+    gain; ``batched``: vmapped over rows of deviations (one part per row)."""
+    key = _gain_key(gain)
+    if batched:
+        return _batched_path_jacobian(profile, grid, key)
+    return _path_jacobian(profile, grid, key)
+
+
 @functools.lru_cache(maxsize=64)
 def _batched_path(profile: Profile, grid: PathGrid, gain_key):
     """Jitted path function vmapped over draws, cached per structure."""
@@ -325,25 +346,9 @@ def linearised_toolpath(
     dev0 = jnp.concatenate(
         [jnp.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float) for f in feats]
     )
-    x0 = jnp.concatenate([jnp.asarray(pts.ravel()), jnp.zeros(len(names))])
-    jac_fn = _residual_jacobians(
-        profile,
-        tuple(feature_ids.tolist()),
-        names,
-        float(ball_radius),
-        transform,
-        approach is not None,
+    d_dx = _deviation_sensitivities(
+        profile, feature_ids, pts, names, dev0, ball_radius, transform, approach
     )
-    j_d, j_x = map(
-        np.asarray, jac_fn(dev0, x0, None if approach is None else jnp.asarray(approach))
-    )
-    index = [np.flatnonzero(feature_ids == f.id) for f in feats]
-    measured = np.concatenate(
-        [np.full(f.nparams, idx.size > 0) for f, idx in zip(feats, index, strict=True)]
-    )
-    d_dx = np.zeros((dev0.size, x0.size))
-    jm = j_d[:, measured]
-    d_dx[measured] = -np.linalg.solve(jm.T @ jm, jm.T @ j_x)
     y_path, j_path = map(np.asarray, _path_jacobian(profile, grid, _gain_key(gain))(dev0))
     jac = np.vstack([d_dx, j_path @ d_dx])
     n_pts = pts.size
@@ -363,7 +368,6 @@ def linearised_toolpath(
     vcov = np.array([cv[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] for j in range(len(vertices))])
     offset = y[sl_o]
     ocov = cov_y[sl_o, sl_o]
-    o_budget = {k: v[sl_o] for k, v in budget.items()}
     if math.isfinite(dof):
         # the repeatability's share is scaled by the estimated sigma (t, `dof`); the
         # declared sources are known (Type B)
@@ -372,12 +376,7 @@ def linearised_toolpath(
         bands = bands_linear(offset, ocov, p=p, dof=dof, cov_estimated=cov_a, n_sim=band_sims)
     else:
         bands = bands_linear(offset, ocov, p=p, n_sim=band_sims)
-    dcov = cov_y[sl_dev, sl_dev]
-    dev_cov, dev_val, i = {}, {}, 0
-    for f in feats:
-        dev_cov[f.id] = dcov[i : i + f.nparams, i : i + f.nparams]
-        dev_val[f.id] = y[i : i + f.nparams]
-        i += f.nparams
+    dev_val, dev_cov = _per_feature(feats, y[sl_dev], cov_y[sl_dev, sl_dev])
     return ToolpathUncertainty(
         method="linearised (GUM)",
         grid=grid,
@@ -389,11 +388,50 @@ def linearised_toolpath(
         deviations=dev_val,
         deviation_cov=dev_cov,
         vertex_budget={k: v[sl_v].reshape(-1, 2) for k, v in budget.items()},
-        offset_budget=o_budget,
+        offset_budget={k: v[sl_o] for k, v in budget.items()},
         deviation_budget={k: v[sl_dev] for k, v in budget.items()},
         dof=float(dof),
         p=p,
     )
+
+
+def _deviation_sensitivities(
+    profile, feature_ids, pts, names, dev0, ball_radius, transform, approach
+) -> np.ndarray:
+    """d(deviations)/d(inputs) at the solution by the implicit function theorem:
+    $-(J_d^T J_d)^{-1} J_d^T J_x$ over the measured features (rows of unmeasured
+    features stay 0); inputs are the point coordinates, then the sources `names`."""
+    feats = profile.features
+    x0 = jnp.concatenate([jnp.asarray(pts.ravel()), jnp.zeros(len(names))])
+    jac_fn = _residual_jacobians(
+        profile,
+        tuple(feature_ids.tolist()),
+        names,
+        float(ball_radius),
+        transform,
+        approach is not None,
+    )
+    j_d, j_x = map(
+        np.asarray, jac_fn(dev0, x0, None if approach is None else jnp.asarray(approach))
+    )
+    index = [np.flatnonzero(feature_ids == f.id) for f in feats]
+    measured = np.concatenate(
+        [np.full(f.nparams, idx.size > 0) for f, idx in zip(feats, index, strict=True)]
+    )
+    d_dx = np.zeros((dev0.size, x0.size))
+    jm = j_d[:, measured]
+    d_dx[measured] = -np.linalg.solve(jm.T @ jm, jm.T @ j_x)
+    return d_dx
+
+
+def _per_feature(feats, values, cov) -> tuple[dict, dict]:
+    """Split the stacked deviations and their covariance by feature id."""
+    dev_val, dev_cov, i = {}, {}, 0
+    for f in feats:
+        dev_cov[f.id] = cov[i : i + f.nparams, i : i + f.nparams]
+        dev_val[f.id] = values[i : i + f.nparams]
+        i += f.nparams
+    return dev_val, dev_cov
 
 
 def monte_carlo_toolpath(

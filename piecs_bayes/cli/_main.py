@@ -1,0 +1,132 @@
+"""The command line: the parser of every command, and `main` (errors as one line and
+an exit code)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from ..errors import AnalysisError, InputError
+from . import _decide, _fit, _gcode, _report
+from ._common import Console
+
+__all__ = ["build_parser", "main"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .. import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="piecs-bayes",
+        description="Uncertainty-aware process-intermittent error compensation for turning.",
+        epilog=(
+            "Exit codes: 0 ok, 1 analysis failed, 2 bad input. See docs/formats.md for the files."
+        ),
+    )
+    parser.add_argument("--version", action="version", version=f"piecs-bayes {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks instead of one line")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    for module in (_fit, _decide, _gcode, _report):
+        module.register(sub)
+    return parser
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised where the program is, so that temporaries are removed."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"piecs-bayes: warning: {message}", file=sys.stderr, flush=True)
+
+
+def _say_error(prefix: str, msg: str) -> None:
+    try:
+        print(f"piecs-bayes: {prefix}: {msg}", file=sys.stderr, flush=True)
+    except (BrokenPipeError, OSError):
+        pass
+
+
+def _os_error(exc: OSError) -> str:
+    where = f"{exc.filename}: " if exc.filename else ""
+    what = {
+        PermissionError: "permission denied",
+        FileNotFoundError: "not found",
+        IsADirectoryError: "is a folder, expected a file",
+        NotADirectoryError: "a parent of this path is a file, not a folder",
+        FileExistsError: "exists and is not a folder",
+    }.get(type(exc), exc.strerror or str(exc))
+    return f"{where}{what}"
+
+
+def main(argv=None) -> int:
+    """Run one command; every failure is one line on stderr and an exit code:
+    0 ok, 1 the analysis failed, 2 bad input or usage (argparse), 130 interrupted
+    (Ctrl-C), 143 terminated (SIGTERM). ``--debug`` shows the traceback instead."""
+    import signal
+    import traceback
+    import warnings
+
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    debug = bool(getattr(args, "debug", False))
+    console = Console(getattr(args, "quiet", False))
+    previous = None
+    try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (e.g. called from a worker): leave it
+        previous = None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")  # shown once each, as one line; never fatal
+            warnings.showwarning = _show_warning
+            return int(args.func(args, console) or 0)
+    except (InputError, AnalysisError) as exc:
+        if debug:
+            traceback.print_exc()
+        bad_input = isinstance(exc, InputError)
+        _say_error("error" if bad_input else "analysis failed", str(exc))
+        return 2 if bad_input else 1
+    except KeyboardInterrupt:
+        _say_error("interrupted", "stopped by Ctrl-C; no partial output was left")
+        return 130
+    except Terminated:
+        _say_error("terminated", "stopped by SIGTERM; no partial output was left")
+        return 143
+    except BrokenPipeError:
+        # the reader of our output went away (`| head`): quiet, and no second error at exit
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        _say_error("stopped", "standard output was closed (broken pipe)")
+        return 1
+    except UnicodeDecodeError as exc:
+        if debug:
+            raise
+        _say_error("error", f"a file is not valid {exc.encoding} text (byte {exc.start}): {exc}")
+        return 2
+    except OSError as exc:
+        if debug:
+            raise
+        _say_error("error", _os_error(exc))
+        return 2
+    except Exception as exc:  # noqa: BLE001 - the last line of defence: one line, exit 1
+        if debug:
+            raise
+        _say_error(
+            "internal error",
+            f"{type(exc).__name__}: {exc} (please report it; rerun with --debug for the traceback)",
+        )
+        return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)

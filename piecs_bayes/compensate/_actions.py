@@ -1,0 +1,204 @@
+"""Candidate actions of the compensation decision and their expected losses.
+
+The *deviation* $\\delta$ of a feature is fitted minus nominal (mm); a *correction* $c$ is
+what the finish cut adds, so the finish-cut deviation becomes $\\delta + c$; a *gain*
+$g$ means $c = -g\\,\\hat\\delta$ with $\\hat\\delta$ the estimate handed in (posterior mean).
+
+**Loss.** Per part, quadratic off-target loss plus a cost per out-of-tolerance part;
+per decision, a cost $C_A$ when the program is changed:
+
+$$L(c) = N\\,\\big(k\\,E[(\\delta + c + \\varepsilon_A)^2]
+ + C_\\text{out}\\,P(\\text{part outside } [T_L, T_U])\\big) + C_A\\,[c \\ne 0],$$
+
+with $\\varepsilon_A \\sim N(0, s_A^2)$ the error of the realised adjustment (only when
+adjusting), the part value $\\delta + c + \\varepsilon_A + N(0, \\sigma_p^2)$ and $N$ the
+parts the decision affects. Expectations are over the posterior of $\\delta$ (normal from
+mean and sd, or weighted samples). With normal posterior $N(m, s^2)$:
+$E[(\\delta+c)^2] = (m+c)^2 + s^2$; adjusting fully beats doing nothing iff
+$m^2 > s_A^2 + C_A/(kN)$ when out-of-tolerance costs are negligible.
+
+**Candidate actions** (all relative to the estimate $\\hat\\delta$ handed in):
+
+- `none`: $c = 0$;
+- `full`: PIECS mirroring, $c = -\\hat\\delta$;
+- `fraction`: controller feedback percentage, $c = -\\lambda\\hat\\delta$;
+- `grubbs`: Grubbs' harmonic rule for the $t$-th setup adjustment, $c = -\\hat\\delta/t$;
+- `grubbs_prior`: its prior-shrunk form $c = -\\hat\\delta/(t + u^2/s_d^2)$ with $u$ the
+  estimate's standard uncertainty and $s_d$ the prior sd of deviations (`prior_sd`);
+- `bayes`: $c^* = \\arg\\min_c L(c)$ under the posterior (including the prior when
+  `prior_sd` is given), or none when not adjusting is cheaper.
+
+**Significance**: $p_\\text{exceed} = P(|\\delta| > b)$ for the null band $b$.
+With finite degrees of freedom the posterior is given as deterministic quantile draws
+of $y + u\\,t_\\nu$ (see `decide`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize, special
+
+from ._conformance import Conformance, conformance
+from ._settings import DecisionSettings
+
+__all__ = ["ActionLoss"]
+
+
+@dataclass(frozen=True)
+class ActionLoss:
+    """One candidate action: its gain on the estimate, correction (mm), expected loss."""
+
+    name: str
+    gain: float
+    correction: float
+    expected_loss: float
+    blocked: bool
+
+    def __repr__(self) -> str:
+        b = ", BLOCKED" if self.blocked else ""
+        return (
+            f"{self.name}: gain {self.gain:.3f}, correction {self.correction:+.4g} mm, "
+            f"E[loss] {self.expected_loss:.4g}{b}"
+        )
+
+
+# --------------------------------------------------------------------------- core
+
+
+@dataclass(frozen=True)
+class _Post:
+    """Posterior used for losses: normal (m, s) or weighted samples."""
+
+    m: float
+    s: float
+    samples: np.ndarray | None = None
+    weights: np.ndarray | None = None
+
+
+def _posterior(m0, s0, samples, prior_sd) -> _Post:
+    if samples is None:
+        if prior_sd is None:
+            return _Post(m0, s0)
+        w = prior_sd**2 / (prior_sd**2 + s0**2)
+        return _Post(m0 * w, s0 * math.sqrt(w))
+    if prior_sd is None:
+        wts = np.full(samples.size, 1.0 / samples.size)
+    else:
+        lw = -0.5 * (samples / prior_sd) ** 2
+        wts = np.exp(lw - lw.max())
+        wts /= wts.sum()
+    m = float(np.sum(wts * samples))
+    s = float(math.sqrt(max(np.sum(wts * (samples - m) ** 2), 0.0)))
+    return _Post(m, s, samples, wts)
+
+
+def _p_out(d, tau, lo, hi):
+    if np.all(tau == 0):
+        return ((d < lo) | (d > hi)).astype(float)
+    with np.errstate(divide="ignore"):
+        return special.ndtr((lo - d) / tau) + special.ndtr((d - hi) / tau)
+
+
+def _loss(c, post: _Post, tol, st: DecisionSettings, k: float, adjust):
+    """Expected loss of corrections `c` (array), `adjust` flags whether each adjusts."""
+    c = np.atleast_1d(np.asarray(c, dtype=float))
+    adjust = np.broadcast_to(np.asarray(adjust, dtype=bool), c.shape)
+    lo, hi = tol
+    sa2 = np.where(adjust, st.adjustment_sd**2, 0.0)
+    n = st.parts_per_decision
+    if post.samples is None:
+        mean = post.m + c
+        ed2 = mean**2 + post.s**2 + sa2 + st.process_sd**2
+        tau = np.sqrt(post.s**2 + sa2 + st.process_sd**2)
+        pout = _p_out(mean, tau, lo, hi)
+    else:
+        d = post.samples[None, :] + c[:, None]
+        ed2 = np.sum(post.weights * d**2, axis=1) + sa2 + st.process_sd**2
+        tau = np.sqrt(sa2 + st.process_sd**2)[:, None]
+        pout = np.sum(post.weights * _p_out(d, tau, lo, hi), axis=1)
+    return n * (k * ed2 + st.out_of_tolerance_cost * pout) + st.adjustment_cost * adjust
+
+
+def _bayes_correction(post: _Post, tol, st, k) -> float:
+    lo, hi = tol
+    width = hi - lo
+    span = max(width, 6.0 * post.s, 1e-9)
+    grid = -post.m + np.linspace(-span, span, 401)
+    f = _loss(grid, post, tol, st, k, True)
+    j = int(np.argmin(f))
+    a, b = grid[max(j - 1, 0)], grid[min(j + 1, grid.size - 1)]
+    res = optimize.minimize_scalar(
+        lambda c: float(_loss(c, post, tol, st, k, True)[0]),
+        bounds=(a, b),
+        method="bounded",
+        options={"xatol": 1e-9 * max(width, 1e-6)},
+    )
+    return float(res.x) if res.fun <= f[j] else float(grid[j])
+
+
+def _p_exceed(post: _Post, band: float) -> float:
+    if post.samples is None:
+        if post.s == 0:
+            return float(abs(post.m) > band)
+        return float(
+            special.ndtr((-band - post.m) / post.s) + special.ndtr((post.m - band) / post.s)
+        )
+    return float(np.sum(post.weights * (np.abs(post.samples) > band)))
+
+
+@dataclass(frozen=True)
+class _Core:
+    post: _Post
+    p_exceed: float
+    actions: tuple[ActionLoss, ...]
+    bayes: ActionLoss
+    before: Conformance
+    after: Conformance
+    significant: bool
+    justified: bool
+
+
+def _evaluate(m0, s0, samples, tol, st: DecisionSettings, k, band, max_corr, t, dof) -> _Core:
+    post = _posterior(m0, s0, samples, st.prior_sd)
+    lam = st.feedback_gain
+    shrink = t if st.prior_sd is None else t + s0**2 / st.prior_sd**2
+    named = [("none", 0.0), ("full", 1.0), ("fraction", lam), ("grubbs", 1.0 / t)]
+    named.append(("grubbs_prior", 1.0 / shrink))
+    actions = []
+    for name, g in named:
+        c = -g * m0 if g != 0.0 and m0 != 0.0 else 0.0
+        adj = c != 0.0
+        loss = float(_loss(c, post, tol, st, k, adj)[0])
+        actions.append(ActionLoss(name, g, c, loss, abs(c) > max_corr))
+    c_b = _bayes_correction(post, tol, st, k)
+    loss_b = float(_loss(c_b, post, tol, st, k, True)[0])
+    loss_0 = actions[0].expected_loss
+    if loss_b >= loss_0:
+        c_b, loss_b = 0.0, loss_0
+    g_b = -c_b / m0 if c_b != 0.0 and m0 != 0.0 else 0.0
+    if not 0.0 <= g_b <= 1.0:
+        # PIECS gains live in [0, 1]: an optimum outside (a hair above 1 by rounding,
+        # or a real overshoot) is clipped and its correction and loss recomputed.
+        g_b = min(max(g_b, 0.0), 1.0)
+        c_b = -g_b * m0
+        loss_b = float(_loss(c_b, post, tol, st, k, c_b != 0.0)[0])
+    bayes = ActionLoss("bayes", g_b, c_b, loss_b, abs(c_b) > max_corr)
+    actions.append(bayes)
+    kw = dict(coverage_factor=st.coverage_factor, guard_band_factor=st.guard_band_factor)
+    # a t-distributed estimate (finite dof, no prior): conformance on its scale s0
+    t_dist = math.isfinite(dof) and st.prior_sd is None
+    u_before, dof_before = (s0, dof) if t_dist else (post.s, math.inf)
+    before = conformance(post.m, u_before, tol, dof=dof_before, **kw)
+    s_after = math.sqrt(u_before**2 + (st.adjustment_sd**2 if c_b != 0 else 0.0))
+    dof_after = dof_before * (s_after / u_before) ** 4 if u_before > 0 else dof_before
+    after = conformance(post.m + c_b, s_after, tol, dof=dof_after, **kw)
+    p_ex = _p_exceed(post, band)
+    significant = p_ex >= st.p_significant
+    require = st.require_significance
+    if require is None:
+        require = st.prior_sd is None
+    justified = c_b != 0.0 and (significant or not require)
+    return _Core(post, p_ex, tuple(actions), bayes, before, after, significant, justified)

@@ -1,0 +1,186 @@
+"""The compiled solves of [`fit_profiles`][]: one jitted `vmap` per group (residual
+function, settings), batches padded to a fixed size, dispatched asynchronously
+and fetched as one packed array, and `solver="auto"`'s Levenberg-Marquardt
+retries of what the batch kernel did not solve."""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..geometry import Profile
+from ._batch_kernel import kernel_solver
+from ._features import feature_residuals, geometry_args
+from ._lsq_core import solve_arrays
+from ._lsq_types import LsqArrays, Status
+
+__all__ = ["BATCH", "KERNEL_MAX_POINTS", "Settings", "dispatch", "fetch", "geometry_table",
+           "group_solver", "retry_lm"]  # fmt: skip
+
+#: problems per compiled call. One fixed size: every study, chunking and cluster
+#: reuses one compilation per group, and a problem's result does not depend on
+#: which others share its batch. (Padding a small study to it costs milliseconds.)
+BATCH = 256
+#: largest padded bucket (points per feature) fitted by the batch kernel. With
+#: 64-point buckets, XLA's CPU runtime (jaxlib 0.10.2) was seen to hang inside the
+#: kernel's nested while loops, every thread idle, whatever the batch size or
+#: dispatch; Levenberg-Marquardt (optimistix) does not. Larger buckets use it.
+KERNEL_MAX_POINTS = 32
+#: batch size of the Levenberg-Marquardt retries of `solver="auto"`
+_RETRY_BATCH = 8
+#: fields of `LsqArrays` kept per problem (all of them: `profile_fit` rebuilds results)
+_FIELDS = LsqArrays._fields
+
+
+class Settings(NamedTuple):
+    """What every solve of one batch fit shares: the loss, the solver choice
+    (`fit_profiles`' `solver`), the tolerances, and the ball radius, loss scale
+    and sigma as arrays."""
+
+    loss: str
+    solver: str
+    rtol: float
+    atol: float
+    max_steps: int
+    ball_radius: jax.Array
+    scale: jax.Array
+    sigma: jax.Array
+
+
+@functools.lru_cache(maxsize=64)
+def _engine_group_solver(kind, free, loss, solver, rtol, atol, max_steps):
+    """Jitted `vmap` of `solve_arrays` for one residual function and settings."""
+    fn = feature_residuals(kind, free)
+    p = len(free)
+
+    def one(points, geom, ball_radius, weights, scale, sigma):
+        return solve_arrays(
+            fn,
+            jnp.zeros(p),
+            (points, geom, ball_radius),
+            weights,
+            loss=loss,
+            scale=scale,
+            sigma=sigma,
+            solver=solver,
+            rtol=rtol,
+            atol=atol,
+            max_steps=max_steps,
+        )
+
+    return jax.jit(jax.vmap(one, in_axes=(0, 0, None, 0, None, None)))
+
+
+def group_solver(st: Settings, kind: str, free: tuple[int, ...], n_pad: int):
+    """The compiled solve of a group: the batch kernel for `"auto"`/`"fast"` up to
+    `KERNEL_MAX_POINTS` points, else Levenberg-Marquardt, or the engine solver
+    `st.solver`."""
+    if st.solver in ("auto", "fast") and n_pad > KERNEL_MAX_POINTS:
+        return _engine_group_solver(kind, free, st.loss, "lm", st.rtol, st.atol, st.max_steps)
+    if st.solver in ("auto", "fast"):
+        return kernel_solver(feature_residuals(kind, free), len(free), st.loss, st.rtol, st.atol)
+    return _engine_group_solver(kind, free, st.loss, st.solver, st.rtol, st.atol, st.max_steps)
+
+
+def _solve_rows(solve, rows, data, bsize, st: Settings) -> dict:
+    """Pad `rows` (problem numbers) to `bsize` problems and solve (synchronously)."""
+    return fetch(dispatch(solve, rows, data, bsize, st), rows.size)
+
+
+def dispatch(solve, rows, data, bsize, st: Settings):
+    """Start the solve of `rows` padded to `bsize` problems (asynchronous). `data`:
+    `(pp, ff, counts, starts, order, centres, geoms, n_pad)`, the problems' part
+    and feature, the points per (part, feature), where they start in `order`, the
+    point order, the points, the geometry table and the group's bucket."""
+    pp, ff, counts, starts, order, centres, geoms, n_pad = data
+    take = np.concatenate([rows, np.repeat(rows[:1], bsize - rows.size)])
+    cnt = counts[pp[take], ff[take]]
+    start = starts[pp[take], ff[take]]
+    j = np.arange(n_pad)
+    # padding repeats the problem's first point (as fit_feature does), weight zero
+    idx = start[:, None] + np.where(j[None, :] < cnt[:, None], j[None, :], 0)
+    pts = centres[order[idx]]
+    w = (j[None, :] < cnt[:, None]).astype(float)
+    geom = _stack_geometry(geoms, ff[take])
+    args = (jnp.asarray(pts), geom, st.ball_radius, jnp.asarray(w), st.scale, st.sigma)
+    return _packed(solve)(*args), _unpacker(solve, jax.tree_util.tree_map(jnp.shape, args))
+
+
+@functools.lru_cache(maxsize=128)
+def _packed(solve):
+    """`solve` with its 17 result arrays packed into one `(B, K)` float64 array: one
+    transfer per batch instead of 17 (integer codes and flags are exact in float64)."""
+
+    def run(*args):
+        out = solve(*args)
+        b = out.params_flat.shape[0]
+        return jnp.concatenate(
+            [jnp.reshape(getattr(out, n), (b, -1)).astype(float) for n in _FIELDS], axis=1
+        )
+
+    return jax.jit(run)
+
+
+@functools.lru_cache(maxsize=128)
+def _layout(solve, shapes):
+    return jax.eval_shape(solve, *jax.tree_util.tree_map(
+        lambda s: jax.ShapeDtypeStruct(s, jnp.float64), shapes,
+        is_leaf=lambda x: isinstance(x, tuple) and all(isinstance(i, int) for i in x),
+    ))  # fmt: skip
+
+
+def _unpacker(solve, shapes):
+    """Field name -> (column slice, per-problem shape, dtype) of `_packed(solve)`."""
+    out = _layout(solve, _hashable(shapes))
+    cols, k = {}, 0
+    for n in _FIELDS:
+        a = getattr(out, n)
+        size = int(np.prod(a.shape[1:], dtype=int))
+        cols[n] = (slice(k, k + size), a.shape[1:], a.dtype)
+        k += size
+    return cols
+
+
+def _hashable(tree):
+    return tuple(_hashable(x) for x in tree) if isinstance(tree, tuple | list) else tree
+
+
+def fetch(dev, m: int) -> dict:
+    """The first `m` problems' results as writable NumPy arrays."""
+    packed, cols = dev
+    arr = np.asarray(jax.device_get(packed))[:m]
+    return {
+        n: arr[:, sl].reshape((m, *shape)).astype(dtype) for n, (sl, shape, dtype) in cols.items()
+    }
+
+
+def retry_lm(out: dict, rows, data, kind, free, st: Settings) -> None:
+    """`solver="auto"`: problems that Gauss-Newton did not solve are solved again
+    with Levenberg-Marquardt (`fit_feature`'s solver), in place; their status is
+    then LM's, so a failure is the failure the loop reports."""
+    bad = np.flatnonzero(out["status_code"] != int(Status.SUCCESSFUL))
+    if bad.size == 0:
+        return
+    solve = _engine_group_solver(kind, free, st.loss, "lm", st.rtol, st.atol, st.max_steps)
+    for lo in range(0, bad.size, _RETRY_BATCH):
+        sub = bad[lo : lo + _RETRY_BATCH]
+        again = _solve_rows(solve, rows[sub], data, _RETRY_BATCH, st)
+        for name in out:
+            out[name][sub] = again[name]
+
+
+@functools.lru_cache(maxsize=64)
+def geometry_table(profile: Profile) -> tuple[np.ndarray, ...]:
+    """The features' nominal geometry (`geometry_args`) stacked, `(F, ...)` per leaf;
+    cached per profile (building it takes ~100 eager JAX operations)."""
+    geoms = [geometry_args(f) for f in profile.features]
+    return tuple(np.stack([np.asarray(g[k]) for g in geoms]) for k in range(len(geoms[0])))
+
+
+def _stack_geometry(table: tuple, which: np.ndarray):
+    """Per-problem nominal geometry `(B, ...)` from the stacked table."""
+    return tuple(jnp.asarray(leaf[which]) for leaf in table)

@@ -1,0 +1,39 @@
+"""Part programs (G-code, lathe dialect): lossless lexing, modal state, tool tables,
+tool-nose compensation (G41/G42), the adjusted finish-cut program, and the rs274 bridge.
+
+Builds on `piecs_bayes.geometry` (features of the profile) and `piecs_bayes.errors`;
+neither `geometry` nor `io` imports this package.
+"""
+
+from ._adjust import BlockChange as BlockChange
+from ._adjust import BlockMap as BlockMap
+from ._adjust import ProgramAdjustment as ProgramAdjustment
+from ._adjust import adjust_program as adjust_program
+from ._adjust import map_blocks_to_profile as map_blocks_to_profile
+from ._lexer import GcodeText as GcodeText
+from ._lexer import SourceLine as SourceLine
+from ._lexer import Word as Word
+from ._lexer import edit_line as edit_line
+from ._lexer import format_number as format_number
+from ._lexer import lex_gcode as lex_gcode
+from ._modal import CompEvent as CompEvent
+from ._modal import CompSetting as CompSetting
+from ._modal import GcodeProgram as GcodeProgram
+from ._modal import LineState as LineState
+from ._modal import Motion as Motion
+from ._modal import parse_gcode as parse_gcode
+from ._modal import read_gcode as read_gcode
+from ._nosecomp import NoseCompResult as NoseCompResult
+from ._nosecomp import PathMove as PathMove
+from ._nosecomp import compensated_path as compensated_path
+from ._nosecomp import correct_radius_error as correct_radius_error
+from ._nosecomp import nose_compensate as nose_compensate
+from ._nosecomp import tip_offset as tip_offset
+from ._rs274 import CanonMove as CanonMove
+from ._rs274 import Rs274Result as Rs274Result
+from ._rs274 import rs274_path as rs274_path
+from ._rs274 import run_rs274 as run_rs274
+from ._tools import ToolEntry as ToolEntry
+from ._tools import parse_tool_table as parse_tool_table
+from ._tools import read_tool_table as read_tool_table
+from ._writer import write_path_program as write_path_program

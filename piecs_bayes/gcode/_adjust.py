@@ -1,0 +1,559 @@
+"""The adjusted finish-cut program: the part program rewritten to the compensated contour.
+
+**Assumptions** (say so to the user): the program is written in *part
+coordinates* (the program zero is the part zero of the study's profile, X
+measured from the spindle axis) and its finish cut programs the *part
+contour* itself, with G41/G42 (or G41.1/G42.1) taking care of the nose radius.
+The finish-cut blocks are then the moves made with compensation on (or every
+G1/G2/G3 move when the program has no compensation at all).
+
+1. :func:`map_blocks_to_profile` pairs those blocks with the profile's
+   features **by geometry**: a G1 block whose end points lie on a line feature
+   (within ``tol_mm``), a G2/G3 block with the same centre and radius as an arc
+   feature and its end points on it. One feature may span several blocks. The
+   first and last compensated blocks may be approach / departure moves that
+   map to no feature (they only follow the contour's end points). An explicit
+   ``mapping`` (feature id -> line numbers, as a study file may give it)
+   overrides the geometric match for the features and lines it names.
+2. :func:`adjust_program` moves each mapped block's end point to the
+   corresponding point of the adjusted feature (a feature end goes to the
+   adjusted end; a point inside a feature keeps its fraction of length or
+   sweep) and rewrites the arc's ``R`` or ``I``/``K``. Only coordinate words
+   change, each in its own number format (decimal places, sign, leading
+   zero), X in the block's diameter / radius mode and units; a word the block
+   lacked is added after its last coordinate word. Every other line stays
+   byte-identical. It refuses (:class:`~piecs_bayes.errors.AnalysisError`) a
+   change larger than ``max_correction_mm``, a block or feature that cannot be
+   mapped, and a result that gouges (a move that reverses, an invalid arc, or
+   a gouge of the LinuxCNC-equivalent nose compensation when the nose radius
+   is known).
+
+Written numbers are rounded to each word's decimal places: with 3 decimals
+in mm a correction is applied to the nearest micrometre. A word written with
+fewer places than the program's usual ones (``X40.0`` in a program of
+``X24.000``) gets the usual places when its own cannot carry the correction.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import AnalysisError, InputError
+from ..geometry import Arc, Line, Profile
+
+__all__ = [
+    "BlockMap",
+    "BlockChange",
+    "ProgramAdjustment",
+    "map_blocks_to_profile",
+    "adjust_program",
+]
+
+
+@dataclass(frozen=True)
+class BlockMap:
+    """Which finish-cut block cuts which feature.
+
+    ``features``: feature id -> line numbers (program order); ``lines``: line
+    -> feature id; ``connecting``: approach / departure lines that map to no
+    feature; ``reversed``: feature ids the program cuts against the profile's
+    direction.
+    """
+
+    features: dict
+    lines: dict
+    connecting: tuple[int, ...]
+    reversed: frozenset
+
+    def __repr__(self) -> str:
+        parts = ", ".join(f"{k}: {list(v)}" for k, v in self.features.items())
+        return f"BlockMap({parts}; connecting {list(self.connecting)})"
+
+
+@dataclass(frozen=True)
+class BlockChange:
+    """One rewritten block: its line, feature, old and new text and how far its end moved (mm)."""
+
+    line: int
+    feature: str | None
+    old: str
+    new: str
+    shift_mm: float
+
+
+@dataclass(frozen=True)
+class ProgramAdjustment:
+    """The adjusted program ``text``, its unified ``diff`` against the original,
+    the block ``changes`` and the ``mapping`` used."""
+
+    text: str
+    diff: str
+    changes: tuple[BlockChange, ...]
+    mapping: BlockMap
+
+    @property
+    def max_shift_mm(self) -> float:
+        return max((c.shift_mm for c in self.changes), default=0.0)
+
+    def __repr__(self) -> str:
+        return (
+            f"ProgramAdjustment({len(self.changes)} blocks rewritten, "
+            f"largest end-point move {self.max_shift_mm * 1000:.1f} um)"
+        )
+
+
+def _read(program):
+    from ._modal import GcodeProgram, read_gcode
+
+    return program if isinstance(program, GcodeProgram) else read_gcode(program)
+
+
+def _candidates(program):
+    moves = [m for m in program.moves if m.comp is not None]
+    if not moves:
+        moves = [m for m in program.moves if m.kind != "rapid"]
+    return [m for m in moves if m.start != m.end]
+
+
+def _on_line(p, f: Line, tol):
+    (x0, z0), (x1, z1) = f.p0, f.p1
+    L = math.dist(f.p0, f.p1)
+    ux, uz = (x1 - x0) / L, (z1 - z0) / L
+    t = (p[0] - x0) * ux + (p[1] - z0) * uz
+    d = abs(-(p[0] - x0) * uz + (p[1] - z0) * ux)
+    return d <= tol and -tol <= t <= L + tol, t / L
+
+
+def _arc_fraction(p, f: Arc):
+    a0 = math.atan2(f.p0[0] - f.center[0], f.p0[1] - f.center[1])
+    a = math.atan2(p[0] - f.center[0], p[1] - f.center[1])
+    d = a - a0
+    if f.ccw:
+        d %= 2 * math.pi
+    else:
+        d = -((-d) % (2 * math.pi))
+    sweep = f.sweep
+    if abs(d - sweep) > math.pi and abs(d) > math.pi:  # wrapped past the start
+        d = d - math.copysign(2 * math.pi, d)
+    return d / sweep
+
+
+def _matches(m, f, tol):
+    """``(matched, reversed)`` for move ``m`` against feature ``f``."""
+    if m.is_arc != (f.kind == "arc"):
+        return False, False
+    if f.kind == "line":
+        ok0, t0 = _on_line(m.start, f, tol)
+        ok1, t1 = _on_line(m.end, f, tol)
+        return ok0 and ok1, t1 < t0
+    c = m.exact_center()
+    if math.dist(c, f.center) > tol or abs(math.dist(c, m.start) - f.radius) > tol:
+        return False, False
+    rev = m.ccw != f.ccw
+    fr = [_arc_fraction(p, f) for p in (m.start, m.end)]
+    slack = tol / max(f.length, tol)
+    inside = all(-slack <= v <= 1 + slack for v in fr)
+    return inside and ((fr[1] < fr[0]) == rev), rev
+
+
+def map_blocks_to_profile(program, profile: Profile, *, tol_mm: float = 0.01, mapping=None):
+    """Map the finish-cut blocks of ``program`` to the features of ``profile``.
+
+    **Arguments:**
+
+    - `program`: a :class:`~piecs_bayes.gcode.GcodeProgram` or a path.
+    - `profile`: the nominal profile (mm, radius X, part coordinates).
+    - `tol_mm`: how far a block's geometry may sit from its feature's.
+    - `mapping`: ``{feature id: line number or list of line numbers}``
+      overriding the geometric match.
+
+    **Returns:** a :class:`BlockMap`. Raises AnalysisError naming the block or
+    feature that cannot be mapped.
+    """
+    program = _read(program)
+    name = program.name or "<program>"
+    moves = _candidates(program)
+    if not moves:
+        raise AnalysisError(f"{name}: no finish-cut block (no compensated or feed move) found")
+    by_line = {m.line: m for m in moves}
+    lines, rev, forced = _forced_lines(program, profile, mapping, by_line)
+    for m in moves:
+        if m.line in forced:
+            continue
+        hits = [(f, r) for f in profile.features for ok, r in [_matches(m, f, tol_mm)] if ok]
+        if len(hits) >= 1:
+            f, r = hits[0]
+            lines[m.line] = f.id
+            if r:
+                rev.add(f.id)
+    ordered = [m for m in moves if m.line in by_line]
+    connecting = _connecting_blocks(program, ordered, lines, name, tol_mm)
+    features = {f.id: tuple(ln for ln in sorted(lines) if lines[ln] == f.id) for f in profile}
+    missing = [fid for fid, lns in features.items() if not lns]
+    if missing:
+        raise AnalysisError(
+            f"{name}: no finish-cut block cuts feature(s) {', '.join(map(repr, missing))} "
+            f"(tolerance {tol_mm:g} mm); give an explicit mapping"
+        )
+    return BlockMap(features, dict(sorted(lines.items())), tuple(connecting), frozenset(rev))
+
+
+def _forced_lines(program, profile: Profile, mapping, by_line):
+    """The explicit ``mapping``: ``(lines, reversed, forced)``; adds its moves to ``by_line``."""
+    lines: dict[int, str] = {}
+    rev: set[str] = set()
+    forced = set()
+    for fid, lns in (mapping or {}).items():
+        f = profile[fid] if fid in profile.ids else None
+        if f is None:
+            raise InputError(
+                f"mapping names feature {fid!r}, which is not in the profile "
+                f"({', '.join(profile.ids)})",
+                feature=fid,
+            )
+        for ln in [lns] if isinstance(lns, int) else list(lns):
+            m = by_line.get(ln) or next((x for x in program.moves if x.line == ln), None)
+            if m is None:
+                raise InputError(
+                    f"mapping for feature {fid!r} names line {ln}, which has no move",
+                    file=program.name,
+                    line=ln,
+                    feature=fid,
+                )
+            if m.is_arc != (f.kind == "arc"):
+                raise InputError(
+                    f"mapping pairs a {'G2/G3' if m.is_arc else 'straight'} block with "
+                    f"{f.kind} feature {fid!r}",
+                    file=program.name,
+                    line=ln,
+                    feature=fid,
+                )
+            by_line.setdefault(ln, m)
+            lines[ln] = fid
+            forced.add(ln)
+            if m.is_arc and m.ccw != f.ccw:
+                rev.add(fid)
+    return lines, rev, forced
+
+
+def _connecting_blocks(program, ordered, lines, name, tol_mm):
+    """Unmapped blocks allowed around the contour (first, last, entry moves); any other
+    unmapped block is an AnalysisError."""
+    connecting = []
+    for k, m in enumerate(ordered):
+        if m.line in lines:
+            continue
+        if k in (0, len(ordered) - 1) or m.entry:
+            connecting.append(m.line)
+            continue
+        text = program.source.line(m.line).text.strip()
+        raise AnalysisError(
+            f"{name}:{m.line}: this finish-cut block lies on no profile feature "
+            f"(tolerance {tol_mm:g} mm); map it explicitly or check that the program is in "
+            f"part coordinates: {text!r}"
+        )
+    return connecting
+
+
+def _transfer(p, nominal, adjusted, reverse):
+    """The point of ``adjusted`` that corresponds to point ``p`` of ``nominal``."""
+    if nominal.kind == "line":
+        _, t = _on_line(p, nominal, math.inf)
+        (a0, a1) = adjusted.p0, adjusted.p1
+        return (a0[0] + t * (a1[0] - a0[0]), a0[1] + t * (a1[1] - a0[1]))
+    fr = _arc_fraction(p, nominal)
+    a0 = math.atan2(adjusted.p0[0] - adjusted.center[0], adjusted.p0[1] - adjusted.center[1])
+    ang = a0 + fr * adjusted.sweep
+    r = adjusted.radius
+    return (adjusted.center[0] + r * math.sin(ang), adjusted.center[1] + r * math.cos(ang))
+
+
+def _snap(p, nominal_profile, adjusted_profile, tol):
+    """Adjusted vertex for a point at a nominal vertex, else None."""
+    for f, g in zip(nominal_profile.features, adjusted_profile.features, strict=True):
+        for a, b in ((f.p0, g.p0), (f.p1, g.p1)):
+            if math.dist(p, a) <= tol:
+                return b
+    return None
+
+
+def _default_decimals(program, units):
+    counts = Counter(
+        w.decimals for ln in program.lines for w in ln.words if w.letter in "XZ" and "." in w.text
+    )
+    best = counts.most_common(1)[0][0] if counts else 0
+    return max(best, 3 if units == "mm" else 4)
+
+
+def _check_sides(program, profile: Profile, bmap) -> None:
+    """G41/G42 must put the nose on the air side of the features its blocks cut:
+    the mapped feature's outward normal is the air side (`check_comp_sides`)."""
+    from ._nosecomp import check_comp_sides
+
+    def air(m):
+        fid = bmap.lines.get(m.line)
+        if fid is None:
+            return None
+        mid = (np.asarray(m.start) + np.asarray(m.end)) / 2.0
+        n = np.asarray(profile[fid].outward_normal(mid))
+        return (float(n[0]), float(n[1]))
+
+    check_comp_sides(program, air)
+
+
+def adjust_program(
+    program,
+    nominal_profile: Profile,
+    adjusted_profile: Profile,
+    *,
+    max_correction_mm: float,
+    mapping=None,
+    tol_mm: float = 0.01,
+    tool_table=None,
+    nose_radius_mm: float | None = None,
+) -> ProgramAdjustment:
+    """Rewrite the finish-cut blocks of ``program`` to ``adjusted_profile``.
+
+    **Arguments:**
+
+    - `program`: a :class:`~piecs_bayes.gcode.GcodeProgram` or a path (part
+      coordinates, the contour programmed with G41/G42).
+    - `nominal_profile`, `adjusted_profile`: the drawing's profile and the
+      compensated one (same feature ids; e.g. ``AdjustedPath.profile``).
+    - `max_correction_mm`: the largest allowed move of any end point, arc
+      centre or radius.
+    - `mapping`: explicit ``{feature id: line numbers}`` (see
+      :func:`map_blocks_to_profile`).
+    - `tol_mm`: geometric matching tolerance.
+    - `tool_table`, `nose_radius_mm`: to check the result for gouges with the
+      nose radius (``nose_radius_mm`` stands in for G41/G42 tools).
+
+    **Returns:** a :class:`ProgramAdjustment`; write ``.text`` with
+    :func:`~piecs_bayes.io.write_text_atomic` (``protect=[input]``).
+    """
+    from ._modal import parse_gcode
+
+    program = _read(program)
+    name = program.name or "<program>"
+    if nominal_profile.ids != adjusted_profile.ids:
+        raise InputError(
+            f"the adjusted profile's features {adjusted_profile.ids} differ from the nominal "
+            f"ones {nominal_profile.ids}"
+        )
+    bmap = map_blocks_to_profile(program, nominal_profile, tol_mm=tol_mm, mapping=mapping)
+    _check_sides(program, nominal_profile, bmap)
+    moves = {m.line: m for m in program.moves}
+    target = _targets(program, moves, nominal_profile, adjusted_profile, bmap, tol_mm)
+    _check_shifts(moves, target, bmap, name, max_correction_mm)
+    texts = _rewrite_blocks(program, target)
+    new_source = program.source.with_line_texts(texts)
+    text = new_source.text
+    try:
+        new_program = parse_gcode(text, name=program.name, **program.options)
+    except InputError as exc:
+        raise AnalysisError(f"the adjusted program is not valid: {exc}") from None
+    _check(program, new_program, target, bmap, name, tool_table, nose_radius_mm)
+    changes: list[BlockChange] = []
+    for ln in sorted(texts):
+        old_m, new_m = moves[ln], new_program.moves_at(ln)[-1]
+        changes.append(
+            BlockChange(
+                ln,
+                bmap.lines.get(ln),
+                program.source.line(ln).text,
+                texts[ln],
+                math.dist(old_m.end, new_m.end),
+            )
+        )
+    diff = "".join(
+        difflib.unified_diff(
+            program.text.splitlines(keepends=True),
+            text.splitlines(keepends=True),
+            fromfile=name,
+            tofile=f"{name} (adjusted)",
+        )
+    )
+    return ProgramAdjustment(text, diff, tuple(changes), bmap)
+
+
+def _targets(program, moves, nominal_profile, adjusted_profile, bmap, tol_mm):
+    """``{line: (new end, new centre or None)}`` for the blocks to rewrite."""
+    target: dict[int, tuple] = {}  # line -> (new end, new centre or None)
+    for ln, fid in bmap.lines.items():
+        m = moves[ln]
+        nom, adj = nominal_profile[fid], adjusted_profile[fid]
+        end = _snap(m.end, nominal_profile, adjusted_profile, tol_mm)
+        end = end if end is not None else _transfer(m.end, nom, adj, fid in bmap.reversed)
+        target[ln] = (end, adj.center if m.is_arc else None)
+    for ln in bmap.connecting:
+        end = _snap(moves[ln].end, nominal_profile, adjusted_profile, tol_mm)
+        if end is not None:
+            target[ln] = (end, None)
+    for prev, nxt in zip(program.moves[:-1], program.moves[1:], strict=True):
+        # the approach to the first mapped block follows the contour's new start
+        if nxt.line in bmap.lines and prev.line not in target and prev.line != nxt.line:
+            end = _snap(prev.end, nominal_profile, adjusted_profile, tol_mm)
+            if end is not None:
+                target[prev.line] = (end, None)
+    return target
+
+
+def _check_shifts(moves, target, bmap, name, max_correction_mm) -> None:
+    """No end point or arc centre may move by more than ``max_correction_mm``."""
+    for ln, (end, centre) in target.items():
+        m = moves[ln]
+        shift = math.dist(end, m.end)
+        if centre is not None:
+            shift = max(shift, math.dist(centre, m.exact_center()))
+        if shift > max_correction_mm:
+            fid = bmap.lines.get(ln)
+            raise AnalysisError(
+                f"{name}:{ln}: the block{f' of feature {fid!r}' if fid else ''} would move by "
+                f"{shift:.4f} mm, more than the maximum correction {max_correction_mm:g} mm"
+            )
+
+
+def _rewrite_blocks(program, target) -> dict[int, str]:
+    """New texts of the target blocks, block by block, tracking where the new program
+    really is (a block that omits an axis follows the new position)."""
+    texts: dict[int, str] = {}
+    pos_new = None
+    for m in program.moves:
+        start = m.start if pos_new is None else pos_new
+        if m.line not in target:
+            pos_new = _realised_end(m, start, program)
+            continue
+        end, centre = target[m.line]
+        new_text = _block_text(program, m, start, end, centre)
+        if new_text is not None:
+            texts[m.line] = new_text
+        pos_new = end
+    return texts
+
+
+def _block_text(program, m, start, end, centre):
+    """The text of block ``m`` moved to ``end`` (and ``centre``), or None if unchanged."""
+    from ._lexer import edit_line, format_number
+
+    line = program.source.line(m.line)
+    st = program.state(m.line)
+    decimals = _default_decimals(program, st.units)
+    scale = 1 / 25.4 if st.units == "in" else 1.0
+    xs = scale * (2.0 if st.diameter else 1.0)
+    want = {
+        "X": (end[0] if st.absolute else end[0] - start[0]) * xs,
+        "Z": (end[1] if st.absolute else end[1] - start[1]) * scale,
+    }
+    if m.is_arc:
+        r_word = line.word("R")
+        if r_word is not None:
+            want["R"] = math.copysign(math.dist(centre, end), r_word.value) * scale
+        else:
+            c = centre if st.arc_absolute else (centre[0] - start[0], centre[1] - start[1])
+            want["I"], want["K"] = c[0] * scale, c[1] * scale
+    values, insert = {}, []
+    for letter, v in want.items():
+        idx = next((k for k, w in enumerate(line.words) if w.letter == letter), None)
+        if idx is not None:
+            word = line.words[idx]
+            new = format_number(v, word, decimals=decimals)
+            if abs(float(new) - v) > 0.5 * 10.0**-decimals:
+                # the word's own decimal places cannot carry the correction
+                new = format_number(v, _widened(word, decimals), decimals=decimals)
+            if new != word.text:
+                values[idx] = new
+        else:
+            modal = _modal_value(letter, start, st, xs, scale)
+            new = format_number(v, decimals=decimals)
+            if modal is None or new != format_number(modal, decimals=decimals):
+                insert.append(f"{letter}{new}")
+    if not (values or insert):
+        return None
+    anchor = max(
+        (k for k, w in enumerate(line.words) if w.letter in "XZIKR"),
+        default=len(line.words) - 1,
+    )
+    return edit_line(line, values=values, insert={anchor: insert})
+
+
+def _widened(word, decimals):
+    """``word`` as if written with ``decimals`` places (sign and leading-zero style kept)."""
+    from dataclasses import replace
+
+    body = word.text.split(".")[0] + "." + "0" * decimals
+    return replace(word, text=body)
+
+
+def _modal_value(letter, start, st, xs, scale):
+    """The value a block means when it omits ``letter`` (I/K omitted are 0)."""
+    if letter in "IK":
+        return 0.0
+    if letter == "R":
+        return None
+    if not st.absolute:
+        return 0.0
+    return start[0] * xs if letter == "X" else start[1] * scale
+
+
+def _realised_end(m, start, program):
+    """Where an unchanged block ends when it starts at ``start`` (absent axes follow)."""
+    line = program.source.line(m.line)
+    st = program.state(m.line)
+    if not st.absolute:
+        return (m.end[0] - m.start[0] + start[0], m.end[1] - m.start[1] + start[1])
+    return (m.end[0] if line.word("X") else start[0], m.end[1] if line.word("Z") else start[1])
+
+
+def _check(old, new, target, bmap, name, tool_table, nose_radius_mm):
+    from ._nosecomp import compensated_path
+
+    if len(old.moves) != len(new.moves):
+        raise AnalysisError(f"{name}: the adjusted program has a different number of moves")
+    for a, b in zip(old.moves, new.moves, strict=True):
+        if b.line in target:
+            end, centre = target[b.line]
+            st = new.state(b.line)
+            tol = 2 * 10.0 ** -_default_decimals(new, st.units) * (25.4 if st.units == "in" else 1)
+            if math.dist(b.end, end) > tol:
+                raise AnalysisError(f"{name}:{b.line}: the rewritten block misses its target")
+        if a.start == a.end or b.start == b.end:
+            continue
+        if a.is_arc:
+            da = _turn(a)
+            db = _turn(b)
+            if db * da <= 0 or abs(db - da) > math.pi / 2:
+                raise AnalysisError(
+                    f"{name}:{b.line}: the adjusted arc no longer runs as programmed (gouge)"
+                )
+        else:
+            d0 = (a.end[0] - a.start[0], a.end[1] - a.start[1])
+            d1 = (b.end[0] - b.start[0], b.end[1] - b.start[1])
+            if d0[0] * d1[0] + d0[1] * d1[1] <= 0:
+                raise AnalysisError(
+                    f"{name}:{b.line}: the adjusted block runs backwards (the correction is "
+                    "larger than the block: gouge)"
+                )
+    if not any(m.comp is not None for m in new.moves):
+        return
+    needs_table = any(m.comp is not None and m.comp.diameter_mm is None for m in new.moves)
+    if needs_table and tool_table is None and nose_radius_mm is None:
+        return
+    try:
+        compensated_path(new, tool_table=tool_table, nose_radius=nose_radius_mm)
+    except AnalysisError as exc:
+        raise AnalysisError(f"the adjusted program gouges with the nose radius: {exc}") from None
+
+
+def _turn(m):
+    c = m.exact_center()
+    a0 = math.atan2(m.start[0] - c[0], m.start[1] - c[1])
+    a1 = math.atan2(m.end[0] - c[0], m.end[1] - c[1])
+    d = a1 - a0
+    if m.ccw:
+        return d % (2 * math.pi) or 2 * math.pi
+    return -((-d) % (2 * math.pi) or 2 * math.pi)

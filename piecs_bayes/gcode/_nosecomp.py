@@ -1,0 +1,349 @@
+"""Tool-nose (cutter) radius compensation for lathe programs: G41/G42/G40 resolved.
+
+The programmed contour is the part's edge; the **nose centre** runs one nose
+radius ``r`` away from it, left (G41) or right (G42) of travel in the drawing
+frame (z right, x up; G2 clockwise, G3 counter-clockwise there). The machine
+positions the tool's **controlled point**, which for a lathe insert is the
+imaginary tip: ``controlled = centre + tip_offset(orientation, r)``.
+
+Tip offsets follow LinuxCNC's documented lathe orientations (checked against
+``rs274``):
+
+| orientation | tip offset ``(dx, dz)`` from the nose centre |
+|---|---|
+| 0, 9 | ``(0, 0)`` (a mill cutter / the nose centre itself) |
+| 1 | ``(-r, +r)`` |
+| 2 | ``(-r, -r)`` |
+| 3 | ``(+r, -r)`` |
+| 4 | ``(+r, +r)`` |
+| 5 | ``(0, +r)`` |
+| 6 | ``(-r, 0)`` |
+| 7 | ``(0, -r)`` |
+| 8 | ``(+r, 0)`` |
+
+(x radial, radius; z along the spindle.) A negative radius swaps the side.
+G41/G42 take the radius (half the ``D`` diameter) and orientation ``Q`` from
+the tool table (the ``D`` word, or else the tool in the spindle); G41.1/G42.1
+carry ``D`` (diameter) and ``L`` (orientation) in the block.
+
+Two corner rules:
+
+- ``corner="arc"`` (default) gives what LinuxCNC does (module
+  ``_nosecomp_arc``, written from its documented behaviour and checked against
+  ``rs274``): an arc about the programmed corner at convex corners, offset
+  curves trimmed at concave ones, the entry move ending one radius off its
+  programmed end normal to it, and the gouge checks (entry move ending within
+  one radius of its start, concave corner the nose cannot fit or reach, arc
+  radius not larger than the nose radius on its inside).
+- ``corner="extend"`` follows the 1969 IBM cutter-compensation disclosure: at
+  a junction of two compensated moves the correction lies on the bisector of
+  the normals with length ``r / cos(alpha / 2)`` (``alpha`` the turn angle),
+  i.e. the offset curves' intersection; where an uncompensated move meets a
+  compensated one the correction is ``r`` along the compensated move's
+  normal; at the far end of an uncompensated move it is zero. The entry
+  (G41/G42) move and the move after G40 are the uncompensated ones. Where an
+  arc meets a line or an arc, the junction is the intersection of the offset
+  curves nearest that bisector point (so arcs stay arcs); a junction turning
+  by less than 0.01 rad is tangent and gets the plain normal offset. The
+  entry move must be straight. A move that the offsets would reverse, or an
+  arc whose offset radius is not positive, is a gouge.
+
+LinuxCNC quirk refused here: after an *arc* entry move with a lathe tip
+offset, a next move that does not leave it smoothly makes LinuxCNC issue a
+full-circle arc (or stop); that program raises AnalysisError instead (program
+a straight entry move). Other differences are listed in ``_nosecomp_arc``.
+
+:func:`correct_radius_error` applies the same rules to an already
+compensated path when the real radius differs from the planned one.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection, Mapping, Sequence
+from dataclasses import dataclass
+
+from ..errors import AnalysisError, InputError
+from ._nosecomp_arc import ArcCornerComp
+from ._nosecomp_base import UniformNose, _left, tip_offset
+from ._nosecomp_extend import _extend, _offset_chain, _Seg
+
+__all__ = [
+    "PathMove",
+    "tip_offset",
+    "compensated_path",
+    "nose_compensate",
+    "NoseCompResult",
+    "correct_radius_error",
+]
+
+
+@dataclass(frozen=True)
+class PathMove:
+    """A move of the controlled point: ``kind`` in ``rapid | feed | cw | ccw``;
+    ``(x, z)`` points in mm (x a radius); ``line`` is the source block."""
+
+    kind: str
+    start: tuple[float, float]
+    end: tuple[float, float]
+    line: int
+    center: tuple[float, float] | None = None
+
+    @property
+    def is_arc(self) -> bool:
+        return self.kind in ("cw", "ccw")
+
+
+def _as_path(raw, start) -> tuple[PathMove, ...]:
+    moves, pos = [], start
+    for kind, end, line, center in raw:
+        moves.append(PathMove(kind, pos, end, line, center))
+        pos = end
+    return tuple(moves)
+
+
+def axial_air(kind: str):
+    """The air side of a turned contour by its kind, for `check_comp_sides`: above an
+    external (OD) contour, below an internal (bore) one, judged on moves that run
+    mostly along Z (a face's air side depends on the step it belongs to)."""
+    if kind not in ("external", "internal"):
+        raise InputError(f"kind: got {kind!r}, expected 'external' or 'internal'", value=kind)
+    up = (1.0, 0.0) if kind == "external" else (-1.0, 0.0)
+
+    def air(m):
+        dx, dz = m.end[0] - m.start[0], m.end[1] - m.start[1]
+        return up if abs(dz) > 2.0 * abs(dx) else None
+
+    return air
+
+
+def infer_kind(program) -> str | None:
+    """``"external"``/``"internal"`` from where the tool comes from and goes to: the
+    start of each compensation run's entry move and the end of its departure move,
+    above every axial compensated move of the run (an OD contour) or below all of
+    them (a bore). None unless every such point agrees (a finish cut that starts
+    in front of the end face and leaves upward says nothing)."""
+    moves = list(program.moves)
+    votes = set()
+    for i, m in enumerate(moves):
+        if not (m.entry and m.comp is not None):
+            continue
+        run = []
+        for n in moves[i + 1 :]:
+            if n.comp is None:
+                break
+            run.append(n)
+        axial = [
+            n
+            for n in run
+            if not n.is_arc and abs(n.end[1] - n.start[1]) > 2.0 * abs(n.end[0] - n.start[0])
+        ]
+        if not axial:
+            continue
+        xs = [v for n in axial for v in (n.start[0], n.end[0])]
+        j = i + 1 + len(run)
+        for p in [m.start] + ([moves[j].end] if j < len(moves) else []):
+            if p[0] > max(xs):
+                votes.add("external")
+            elif p[0] < min(xs):
+                votes.add("internal")
+    return votes.pop() if len(votes) == 1 else None
+
+
+def check_comp_sides(program, air) -> None:
+    """Refuse G41/G42 on the side that cuts into the material.
+
+    G41 puts the nose left of travel, G42 right (drawing frame: z right, x up; a
+    negative G41.1/G42.1 diameter swaps them). `air(move)` gives the unit direction
+    of the air side of a programmed straight move (e.g. the outward normal of the
+    profile feature it cuts, or `axial_air(kind)`), or None where it cannot say.
+    A compensated move whose nose side points into the material is an `InputError`
+    naming its line. (LinuxCNC's rs274 runs such a program: it judges gouges, not
+    sides.)
+    """
+    for m in program.moves:
+        if m.comp is None or m.entry or m.is_arc or m.start == m.end:
+            continue
+        n_air = air(m)
+        if n_air is None:
+            continue
+        side = m.comp.side
+        if m.comp.diameter_mm is not None and m.comp.diameter_mm < 0:
+            side = "left" if side == "right" else "right"
+        left = _left((m.end[0] - m.start[0], m.end[1] - m.start[1]))
+        nose = left if side == "left" else (-left[0], -left[1])
+        if nose[0] * n_air[0] + nose[1] * n_air[1] < -0.5:
+            other = "G42" if side == "left" else "G41"
+            raise InputError(
+                f"{m.comp.code} (line {m.comp.line}) puts the tool nose {side} of travel, on "
+                f"the material side of the contour at line {m.line}: it would cut into the "
+                f"part; use {other}",
+                file=getattr(program, "name", None),
+                line=m.line,
+                value=m.comp.code,
+            )
+
+
+def compensated_path(
+    program,
+    *,
+    corner: str = "arc",
+    tool_table: Mapping | None = None,
+    nose_radius: float | None = None,
+    start: tuple[float, float] | None = None,
+) -> tuple[PathMove, ...]:
+    """The controlled point's path for a program with G41/G42/G40 (mm, radius X).
+
+    **Arguments:**
+
+    - `program`: a :class:`~piecs_bayes.gcode.GcodeProgram`.
+    - `corner`: ``"arc"`` (LinuxCNC's corners) or ``"extend"`` (1969 bisector rule).
+    - `tool_table`: ``{tool: ToolEntry}`` for G41/G42 (see
+      :func:`~piecs_bayes.gcode.read_tool_table`).
+    - `nose_radius`: instead of a tool table, the nose radius (mm) of every
+      G41/G42 tool, orientation 0 (G41.1/G42.1 keep their own D and L).
+    - `start`: the tool position before the first move (default: the one the
+      program was read with).
+
+    **Returns:** one :class:`PathMove` per motion of the controlled point, each
+    with the line of the block that produced it. Raises
+    :class:`~piecs_bayes.errors.AnalysisError` (with ``.line``) on a gouge.
+    """
+    if nose_radius is not None:
+        if isinstance(nose_radius, bool) or not (
+            isinstance(nose_radius, int | float) and math.isfinite(nose_radius) and nose_radius > 0
+        ):
+            raise InputError(
+                f"nose radius must be a finite number > 0 (mm), got {nose_radius!r}",
+                value=nose_radius,
+            )
+        tool_table = UniformNose(float(nose_radius))
+    if start is None:
+        start = tuple(program.options.get("start", (0.0, 0.0)))
+    comp = ArcCornerComp(program, tool_table, start)
+    if corner == "arc":
+        raw = comp.run()
+    elif corner == "extend":
+        raw = _extend(program, tool_table, comp.gouge)
+    else:
+        raise InputError(f"unknown corner rule {corner!r}; expected 'arc' or 'extend'")
+    path = _as_path(raw, start)
+    programmed = {m.line: m for m in program.moves}
+    for m in path:
+        if m.is_arc and math.dist(m.start, m.end) < 1e-7:
+            src = programmed.get(m.line)
+            if src is None or math.dist(src.start, src.end) >= 1e-7:
+                raise comp.gouge(
+                    m.line, "compensation would turn this arc into a full circle (gouge)"
+                )
+    return path
+
+
+@dataclass(frozen=True)
+class NoseCompResult:
+    """A program with compensation resolved: ``text`` has no G41/G42/G40 words."""
+
+    text: str
+    path: tuple[PathMove, ...]
+    corner: str
+    changed_lines: tuple[int, ...]
+
+    def __repr__(self) -> str:
+        return (
+            f"NoseCompResult(corner={self.corner!r}, {len(self.path)} moves, "
+            f"{len(self.changed_lines)} source lines rewritten)"
+        )
+
+
+def nose_compensate(
+    program,
+    *,
+    corner: str = "arc",
+    tool_table: Mapping | None = None,
+    nose_radius: float | None = None,
+    start: tuple[float, float] | None = None,
+    kind: str | None = "auto",
+) -> NoseCompResult:
+    """Resolve nose-radius compensation into an equivalent program without it.
+
+    Lines outside compensation stay byte-identical; compensated blocks are
+    rewritten (their other words and comments kept) with the controlled
+    point's moves, extra corner arcs on lines of their own. Arguments as for
+    :func:`compensated_path`; `kind` (``"external"``, ``"internal"``, ``"auto"``:
+    `infer_kind`, or None: not checked) says where the material is, and a G41/G42
+    on the material side is refused (`check_comp_sides`).
+    """
+    from ._writer import write_path_program
+
+    if kind == "auto":
+        kind = infer_kind(program)
+    if kind is not None:
+        check_comp_sides(program, axial_air(kind))
+    path = compensated_path(
+        program, corner=corner, tool_table=tool_table, nose_radius=nose_radius, start=start
+    )
+    text, changed = write_path_program(program, path)
+    return NoseCompResult(text, path, corner, changed)
+
+
+def correct_radius_error(
+    path: Sequence,
+    *,
+    planned: float,
+    actual: float,
+    side: str,
+    orientation: int = 0,
+    compensated: Callable[[object], bool] | Collection[int] | None = None,
+) -> tuple[PathMove, ...]:
+    """Correct an already compensated path for a nose radius that differs from plan.
+
+    Every compensated move is offset by ``dr = actual - planned`` to the
+    compensation ``side`` (``"left"``/``"right"`` of travel; a negative ``dr``
+    offsets the other way): lines move parallel, arcs change radius by ``dr``
+    (convex corner arcs of radius ``planned`` become ``actual``), and the
+    junctions follow the 1969 rule (bisector ``dr / cos(alpha / 2)`` between
+    compensated moves, ``dr`` normal where an uncompensated move meets one,
+    zero at the far end of an uncompensated move). The imaginary tip moves with
+    the radius too: ``tip_offset(orientation, dr)`` is added to compensated
+    points.
+
+    **Arguments:**
+
+    - `path`: moves with ``kind, start, end, line, center`` (``PathMove`` or
+      ``Motion``), mm, radius X.
+    - `planned`, `actual`: nose radii (mm).
+    - `side`: ``"left"`` or ``"right"`` (G41 / G42).
+    - `orientation`: the tool orientation 0-9.
+    - `compensated`: which moves were compensated: a predicate on a move or
+      the source line numbers (default: every feed move and arc, no rapid).
+
+    **Returns:** the corrected moves. Raises AnalysisError on a gouge.
+    """
+    if side not in ("left", "right"):
+        raise InputError(f"side must be 'left' or 'right', got {side!r}")
+    if planned < 0 or actual < 0:
+        raise InputError(f"radii must be >= 0, got planned={planned} actual={actual}")
+    dr = actual - planned
+    if compensated is None:
+        is_comp = lambda m: m.kind != "rapid"  # noqa: E731
+    elif callable(compensated):
+        is_comp = compensated
+    else:
+        lines = {int(n) for n in compensated}
+        is_comp = lambda m: m.line in lines  # noqa: E731
+    segs = [
+        _Seg(m.kind, tuple(m.start), tuple(m.end), m.line, m.center, bool(is_comp(m)))
+        for m in path
+        if tuple(m.start) != tuple(m.end)
+    ]
+    if not segs:
+        return ()
+
+    def err(line, msg):
+        e = AnalysisError(f"line {line}: {msg}")
+        e.line = line
+        return e
+
+    s = 1.0 if side == "left" else -1.0
+    raw = _offset_chain(segs, s, dr, tip_offset(orientation, dr), err)
+    return _as_path(raw, segs[0].start)

@@ -1,0 +1,318 @@
+"""Readers of the study file's core sections: `[study]` files, `[profile]` and its
+features, `[probe]`, `[machine]`, `[uncertainty]`, `[fit]` and `[compensation]`.
+
+Each takes a [`Reader`][] (which names the file and key path in its errors) and
+the length scale to millimetres; X is converted to radius here.
+"""
+
+from __future__ import annotations
+
+import glob
+import math
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from ..errors import InputError
+from ..geometry import MachineTransform, Profile, ProfileError, make_feature, profile_side
+from ._reader import Reader
+from ._schema import check_source
+from ._settings import CompensationSettings, FitSettings, ProbeSpec, split_fix
+
+__all__ = [
+    "KNOWN_SOURCES",
+    "read_compensation",
+    "read_files",
+    "read_fit",
+    "read_machine",
+    "read_probe",
+    "read_profile",
+    "read_sources",
+]
+
+#: Uncertainty sources a study may declare, with the unit of their values.
+KNOWN_SOURCES = {
+    "repeatability": "mm (probe repeatability, standard deviation)",
+    "ball_radius": "mm (stylus ball radius calibration error)",
+    "pretravel": "mm (directional pretravel, along the approach)",
+    "scale_x": "1 (X axis scale error, e.g. 10e-6 = 10 ppm)",
+    "scale_z": "1 (Z axis scale error)",
+    "x_centre": "mm (centre-line offset error in X)",
+    "z_offset": "mm (work offset error in Z)",
+    "rotation": "rad (small rotation of the probe frame)",
+    "thermal": "1/K (thermal expansion error, times the temperature difference)",
+}
+_LENGTH_SOURCES = {"repeatability", "ball_radius", "pretravel", "x_centre", "z_offset"}
+_DIST_LENGTH_KEYS = {"mean", "sd", "low", "high", "scale", "half_width", "loc"}
+_TRANSFORM_NAMES = ("x_centre", "z_offset", "scale_x", "scale_z", "rotation")
+
+
+def _check_arc(r: Reader, spec: dict, path: str, fid: str) -> None:
+    """An arc's start and end differ and lie at one distance from its centre."""
+    if math.dist(spec["p0"], spec["p1"]) <= 1e-9 * max(1.0, abs(spec["p0"][1])):
+        raise r.error(
+            f"{path}end",
+            "arc start equals its end (a full circle is not a feature of a turned profile)",
+            feature=fid,
+        )
+    r0, r1 = math.dist(spec["p0"], spec["center"]), math.dist(spec["p1"], spec["center"])
+    if r0 <= 0 or abs(r0 - r1) > 1e-6 * max(1.0, r0):
+        raise r.error(
+            f"{path}center",
+            f"start and end are not equidistant from the centre (radii {r0:.6f} and {r1:.6f} mm)",
+            feature=fid,
+        )
+
+
+def _tolerance(r: Reader, f: dict, path: str, fid: str, scale: float) -> tuple[float, float]:
+    """A feature's `tolerance = [lower, upper]` (default ±0.01), in mm."""
+    tol = f.get("tolerance", [-0.01, 0.01])
+    if (
+        not isinstance(tol, list)
+        or len(tol) != 2
+        or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in tol)
+        or not all(math.isfinite(v) for v in tol)
+        or not tol[0] < tol[1]
+    ):
+        raise r.error(
+            f"{path}tolerance",
+            f"expected [lower, upper] finite deviations with lower < upper, got {tol!r}",
+            feature=fid,
+            value=tol,
+        )
+    return (float(tol[0]) * scale, float(tol[1]) * scale)
+
+
+def _feature(r: Reader, f, i: int, scale: float, xscale: float) -> dict:
+    """The spec of `[[profile.feature]]` number `i` for `geometry.make_feature`."""
+    path = f"profile.feature[{i}]."
+    if not isinstance(f, dict):
+        raise r.error(path[:-1], f"expected a table, got {f!r}")
+    fid = f.get("id")
+    if not isinstance(fid, str) or not fid.strip():
+        raise r.error(f"{path}id", f"expected a non-empty string id, got {fid!r}", value=fid)
+    kind = f.get("type")
+    if kind not in ("line", "arc"):
+        raise r.error(
+            f"{path}type",
+            f"unknown feature type {kind!r}; expected 'line' or 'arc'",
+            feature=fid,
+            value=kind,
+        )
+
+    def pt(key):
+        x, z = r.point(f, key, path, fid)
+        return (x * xscale, z * scale)
+
+    spec: dict[str, Any] = {"id": fid, "p0": pt("start"), "p1": pt("end")}
+    if kind == "arc":
+        spec["center"] = pt("center")
+        direction = f.get("direction")
+        if direction not in ("cw", "ccw"):
+            raise r.error(
+                f"{path}direction",
+                f"unknown arc direction {direction!r}; "
+                "expected 'cw' or 'ccw' (drawing frame: z right, x up)",
+                feature=fid,
+                value=direction,
+            )
+        spec["ccw"] = direction == "ccw"
+        _check_arc(r, spec, path, fid)
+    elif math.dist(spec["p0"], spec["p1"]) == 0:
+        raise r.error(f"{path}end", "line has zero length (start == end)", feature=fid)
+    spec["tolerance"] = _tolerance(r, f, path, fid, scale)
+    return spec
+
+
+def _features(r: Reader, prof: dict, scale: float, xscale: float) -> list[dict]:
+    feats = prof.get("feature")
+    if not isinstance(feats, list) or not feats:
+        raise r.error("profile.feature", "the profile needs at least one [[profile.feature]]")
+    return [_feature(r, f, i, scale, xscale) for i, f in enumerate(feats)]
+
+
+def read_profile(r: Reader, tree: dict, scale: float) -> Profile:
+    """`[profile]` and its `[[profile.feature]]` tables: the nominal profile."""
+    prof = r.table(tree, "profile", "", required=True)
+    x_mode = r.choice(prof, "x_mode", "profile.", ("radius", "diameter"), "radius")
+    kind = r.choice(prof, "kind", "profile.", ("external", "internal"), "external")
+    tangent_tol = r.number(prof, "tangent_tolerance_deg", "profile.", 0.5, positive=True)
+    specs = _features(r, prof, scale, scale / 2 if x_mode == "diameter" else scale)
+    try:
+        side = profile_side(specs, internal=kind == "internal")
+        return Profile(tuple(make_feature(s, side) for s in specs), tangent_tol_deg=tangent_tol)
+    except ProfileError as exc:
+        raise InputError(str(exc), file=r.file, feature=exc.feature) from None
+
+
+def read_probe(r: Reader, tree: dict, scale: float, profile: Profile) -> ProbeSpec:
+    """`[probe]`; a concave arc the ball cannot touch is an error."""
+    pr = r.table(tree, "probe", "", required=True)
+    probe = ProbeSpec(
+        ball_radius=r.number(pr, "ball_radius", "probe.", positive=True) * scale,
+        ball_radius_u=r.number(pr, "ball_radius_u", "probe.", 0.0, nonneg=True) * scale,
+        repeatability=r.number(pr, "repeatability", "probe.", 0.001 / scale, positive=True) * scale,
+        x_mode=r.choice(pr, "x_mode", "probe.", ("diameter", "radius"), "diameter"),
+        pretravel=r.number(pr, "pretravel", "probe.", 0.0) * scale,
+        repeatability_dof=r.number(pr, "repeatability_dof", "probe.", 8.0, nonneg=True),
+    )
+    for f in profile.features:
+        if f.kind == "arc" and not f.convex and f.radius <= probe.ball_radius:
+            raise InputError(
+                f"concave arc radius {f.radius:g} mm is not larger than the probe ball radius "
+                f"{probe.ball_radius:g} mm: the ball cannot touch it",
+                file=r.file,
+                feature=f.id,
+                value=f.radius,
+            )
+    return probe
+
+
+def read_machine(r: Reader, tree: dict, scale: float) -> MachineTransform:
+    """`[machine]`: the nominal probe-to-machine transform."""
+    m = r.table(tree, "machine", "")
+    return MachineTransform(
+        x_centre=r.number(m, "x_centre", "machine.", 0.0) * scale,
+        z_offset=r.number(m, "z_offset", "machine.", 0.0) * scale,
+        scale_x=r.number(m, "scale_x", "machine.", 0.0),
+        scale_z=r.number(m, "scale_z", "machine.", 0.0),
+        rotation=r.number(m, "rotation", "machine.", 0.0),
+    )
+
+
+def read_sources(r: Reader, tree: dict, scale: float) -> dict:
+    """`[uncertainty]`: one distribution table per known source, lengths in mm."""
+    out = {}
+    for name, spec in tree.items():
+        path = f"uncertainty.{name}"
+        if name not in KNOWN_SOURCES:
+            raise r.error(
+                path,
+                f"unknown uncertainty source {name!r}; known: {', '.join(KNOWN_SOURCES)}",
+                value=name,
+            )
+        if not isinstance(spec, dict) or "dist" not in spec:
+            raise r.error(
+                path,
+                f"expected a table with 'dist' (normal, uniform, half_normal...), got {spec!r}",
+            )
+        check_source(r.file, name, spec)
+        spec = dict(spec)
+        for key, val in spec.items():
+            if key == "dist":
+                continue
+            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
+                raise r.error(f"{path}.{key}", f"expected a finite number, got {val!r}", value=val)
+            if name in _LENGTH_SOURCES and key in _DIST_LENGTH_KEYS:
+                spec[key] = float(val) * scale
+        out[name] = MappingProxyType(spec)
+    return out
+
+
+def _fit_values(r: Reader, ft: dict, scale: float) -> dict[str, Any]:
+    """The scalar `[fit]` settings, read in the order they are declared."""
+    return {
+        "method": r.choice(ft, "method", "fit.", ("lsq", "robust", "bayes"), "robust"),
+        "loss": r.choice(
+            ft, "loss", "fit.", ("linear", "huber", "soft_l1", "cauchy", "tukey"), "huber"
+        ),
+        "scale": (r.number(ft, "scale", "fit.", positive=True) * scale) if "scale" in ft else None,
+        "known_sigma": r.boolean(ft, "known_sigma", "fit.", False),
+        "min_points_line": r.integer(ft, "min_points_line", "fit.", 3),
+        "min_points_arc": r.integer(ft, "min_points_arc", "fit.", 4),
+        "likelihood": r.choice(ft, "likelihood", "fit.", ("gaussian", "student_t"), "gaussian"),
+        "nu": r.number(ft, "nu", "fit.", 4.0, positive=True),
+        "bayes_steps": r.integer(ft, "bayes_steps", "fit.", 6000),
+        "bayes_walkers": (
+            r.integer(ft, "bayes_walkers", "fit.", 0) if "bayes_walkers" in ft else None
+        ),
+        "bayes_ensembles": r.integer(ft, "bayes_ensembles", "fit.", 4),
+    }
+
+
+def _check_fit_names(r: Reader, ft: dict, profile: Profile) -> None:
+    """`fix` names `feature.parameter` of the profile; `free_transform` transform names."""
+    for key in ("fix", "free_transform"):
+        val = ft.get(key, [])
+        if not isinstance(val, list) or not all(isinstance(v, str) for v in val):
+            raise r.error(f"fit.{key}", f"expected a list of names, got {val!r}", value=val)
+    for item in ft.get("fix", []):
+        fid, pname = split_fix(item)
+        if fid not in profile.ids or pname not in profile[fid].param_names:
+            raise r.error(
+                "fit.fix",
+                f"cannot fix {item!r}: expected 'feature.parameter' with a feature of the profile "
+                "and one of its parameters "
+                "(line: offset, rotation; arc: center_x, center_z, radius)",
+                feature=fid,
+                value=item,
+            )
+    for item in ft.get("free_transform", []):
+        if item not in _TRANSFORM_NAMES:
+            raise r.error(
+                "fit.free_transform",
+                f"unknown transform parameter {item!r}; "
+                f"expected one of {', '.join(_TRANSFORM_NAMES)}",
+                value=item,
+            )
+
+
+def read_fit(r: Reader, tree: dict, scale: float, profile: Profile) -> FitSettings:
+    """`[fit]`: how the features are fitted."""
+    ft = r.table(tree, "fit", "")
+    values = _fit_values(r, ft, scale)
+    _check_fit_names(r, ft, profile)
+    fit = FitSettings(
+        **values,
+        fix=tuple(ft.get("fix", [])),
+        free_transform=tuple(ft.get("free_transform", [])),
+    )
+    if fit.min_points_line < 3 or fit.min_points_arc < 4:
+        raise r.error(
+            "fit.min_points_line",
+            "at least 3 points per line and 4 per arc are needed for an uncertainty",
+        )
+    return fit
+
+
+def read_compensation(r: Reader, tree: dict, scale: float) -> CompensationSettings:
+    """`[compensation]`: the mirroring gain in [0, 1] and the largest correction."""
+    cp = r.table(tree, "compensation", "")
+    gain = r.number(cp, "gain", "compensation.", 1.0)
+    if not 0.0 <= gain <= 1.0:
+        raise r.error("compensation.gain", f"gain must be in [0, 1], got {gain!r}", value=gain)
+    return CompensationSettings(
+        gain=gain,
+        max_correction=r.number(cp, "max_correction", "compensation.", 0.2 / scale, positive=True)
+        * scale,
+    )
+
+
+def read_files(r: Reader, tree: dict, base: Path) -> tuple[tuple[Path, ...], Path | None]:
+    """`[study]` `probe_files` (glob patterns allowed) and `part_program`, relative
+    to `base`."""
+    probe_files = tree.get("probe_files", [])
+    if isinstance(probe_files, str):
+        probe_files = [probe_files]
+    if not isinstance(probe_files, list) or not all(isinstance(p, str) for p in probe_files):
+        raise r.error("study.probe_files", f"expected a list of file names, got {probe_files!r}")
+    paths = []
+    for p in probe_files:
+        if any(ch in p for ch in "*?["):
+            # Path.glob takes relative patterns only: an absolute one goes to glob.glob
+            matches = (
+                sorted(Path(m) for m in glob.glob(p))
+                if Path(p).is_absolute()
+                else sorted(base.glob(p))
+            )
+        else:
+            matches = [base / p]
+        if not matches:
+            raise r.error(
+                "study.probe_files", f"no file matches {p!r} (relative to {base})", value=p
+            )
+        paths.extend(matches)
+    program = tree.get("part_program")
+    if program is not None and not isinstance(program, str):
+        raise r.error("study.part_program", f"expected a file name, got {program!r}")
+    return tuple(paths), (base / program if program else None)

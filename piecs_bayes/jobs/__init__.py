@@ -1,0 +1,54 @@
+"""The user's jobs: what the CLI and the notebooks call.
+
+Each job composes the numerical layers (fit, compensate, uncertainty, gcode) on a
+study and returns immutable data; `piecs_bayes.export` renders and writes it.
+
+- one part (`load_probe_data`, `fit_study`, `bayes_study`, `compensate_study`,
+  `toolpath_uncertainty`, `adjust_study_program`), its decision table
+  (`decide_study`) and its machine data (`error_spec`, `tool_offsets`);
+- the main job end to end (`run_job` -> `JobResults`);
+- many parts: batch fits (`fit_study_batch`), capability studies in chunks,
+  in-process or on Dask (`capability_study`, `capability_values`), path
+  uncertainty of every part (`path_uncertainty_batch`);
+- the coverage check of the uncertainty model on simulated parts
+  (`coverage_check`) and the simulated data sets (`piecs_bayes.jobs.simulate`);
+- `options`: the one translation of a study into the layers' settings.
+"""
+
+from ._batch import CapabilityJob as CapabilityJob
+from ._batch import PathUncertaintyBatch as PathUncertaintyBatch
+from ._batch import capability_job as capability_job
+from ._batch import capability_values as capability_values
+from ._batch import fit_study_batch as fit_study_batch
+from ._batch import path_uncertainty_batch as path_uncertainty_batch
+from ._calibration import CoverageResult as CoverageResult
+from ._calibration import coverage_check as coverage_check
+from ._capability import CapabilityStudy as CapabilityStudy
+from ._capability import FeatureCapability as FeatureCapability
+from ._capability import capability_from_values as capability_from_values
+from ._capability import capability_study as capability_study
+from ._decide import DecisionTable as DecisionTable
+from ._decide import characteristics as characteristics
+from ._decide import decide_features as decide_features
+from ._decide import decide_study as decide_study
+from ._fit import adjust_study_program as adjust_study_program
+from ._fit import bayes_study as bayes_study
+from ._fit import compensate_study as compensate_study
+from ._fit import fit_study as fit_study
+from ._fit import inliers as inliers
+from ._fit import load_probe_data as load_probe_data
+from ._fit import pooled_sigma as pooled_sigma
+from ._fit import toolpath_uncertainty as toolpath_uncertainty
+from ._machine import error_spec as error_spec
+from ._machine import tool_offsets as tool_offsets
+from ._main import run_job as run_job
+from ._options import bayes_options as bayes_options
+from ._options import bayes_sources as bayes_sources
+from ._options import decision_settings as decision_settings
+from ._options import fit_options as fit_options
+from ._options import offset_settings as offset_settings
+from ._options import robust_scale as robust_scale
+from ._options import source_sds as source_sds
+from ._results import InputFile as InputFile
+from ._results import JobResults as JobResults
+from ._results import package_versions as package_versions

@@ -1,0 +1,480 @@
+"""What the process is capable of over a run of parts: capability, stability and the
+capability predicted after compensation, per feature.
+
+Per part and feature the value is the characteristic (normal deviation at a fixed
+nominal point, `piecs_bayes.uncertainty.feature_characteristic`); the parts are
+fitted in batches ([`capability_values`][piecs_bayes.jobs.capability_values], also
+on Dask) or, for joint fits, one by one. `export.capability_json` and
+`capability_text` render the study.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from types import MappingProxyType
+
+import numpy as np
+
+from ..compensate import (
+    CapabilityResult,
+    PredictedCapability,
+    StabilityResult,
+    capability,
+    predict_capability,
+    stability_check,
+)
+from ..errors import AnalysisError, InputError
+from ..fit import CHUNK_PARTS
+from ..uncertainty import feature_characteristic
+from ._batch import capability_values
+from ._fit import fit_study, load_probe_data
+from ._options import source_sds
+
+__all__ = [
+    "CapabilityStudy",
+    "FeatureCapability",
+    "capability_from_values",
+    "capability_study",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class FeatureCapability:
+    """Capability of one feature's characteristic over the parts of a run.
+
+    `values` (mm) in production order with their measurement uncertainties `u`;
+    `capability` (Cp, Cpk, Pp, Ppk with confidence intervals, Bayesian credible
+    intervals), `stability` (individuals / moving-range chart), `predicted` the
+    capability after shifting the mean by `-gain * (mean - target)` with the
+    overall spread kept, `predicted_within` the same with the within-part
+    (moving-range) spread, i.e. if compensation also removed the drift and steps.
+    """
+
+    feature: str
+    tolerance: tuple[float, float]
+    characteristic: str
+    parts: tuple[str, ...]
+    values: np.ndarray
+    u: np.ndarray
+    capability: CapabilityResult
+    stability: StabilityResult
+    predicted: PredictedCapability
+    predicted_within: PredictedCapability
+    gain: float
+    notes: tuple[str, ...] = ()
+
+    @property
+    def step_part(self) -> str | None:
+        """The first part after the most likely step, when the step is clear (|t| > 4)."""
+        s = self.stability
+        if s.step_index is None or abs(s.step_t) <= 4.0:
+            return None
+        return self.parts[s.step_index]
+
+    def findings(self) -> list[str]:
+        """The stability check's findings, by part id (production order)."""
+        s, ids = self.stability, self.parts
+        out = []
+        if s.beyond_limits:
+            out.append(
+                f"{len(s.beyond_limits)} part(s) beyond the 3-sigma limits "
+                f"[{s.lcl * 1e3:+.2f}, {s.ucl * 1e3:+.2f}] um: {_spans(s.beyond_limits, ids)}"
+            )
+        for a, b in s.runs:
+            out.append(
+                f"run of {b - a + 1} parts on one side of the centre line: {ids[a]}..{ids[b]}"
+            )
+        for a, b in s.trends:
+            out.append(f"trend of {b - a + 1} parts steadily rising or falling: {ids[a]}..{ids[b]}")
+        if s.mr_beyond:
+            out.append(f"moving range above its limit at {_spans(s.mr_beyond, ids)}")
+        if self.step_part:
+            out.append(
+                f"likely step of {s.step_size * 1e3:+.2f} um before {self.step_part} "
+                f"(t = {s.step_t:.1f})"
+            )
+        return out
+
+    def flags(self, i: int) -> str:
+        s = self.stability
+        out = []
+        if i in s.beyond_limits:
+            out.append("beyond 3 sigma")
+        if i in s.run_points:
+            out.append("run")
+        if i in s.trend_points:
+            out.append("trend")
+        if i in s.mr_beyond:
+            out.append("moving range")
+        return "; ".join(out)
+
+    def summary(self) -> dict:
+        c, b, s = self.capability, self.capability.bayes, self.stability
+        row = {
+            "feature": self.feature,
+            "at": self.characteristic,
+            "n": c.n,
+            "lsl_mm": c.lsl,
+            "usl_mm": c.usl,
+            "mean_mm": c.mean,
+            "sigma_within_mm": c.sigma_within,
+            "sigma_overall_mm": c.sigma_overall,
+            "gauge_sd_mm": float(np.sqrt(np.mean(self.u**2))),
+        }
+        for name in ("cp", "cpk", "pp", "ppk"):
+            ci = getattr(c, f"{name}_ci")
+            row[name], row[f"{name}_lower"], row[f"{name}_upper"] = getattr(c, name), *ci
+        if b is not None:
+            row["bayes_cpk"] = b.cpk
+            row["bayes_cpk_lower"], row["bayes_cpk_upper"] = b.cpk_interval
+            row["bayes_cp"] = b.cp
+            row["bayes_cp_lower"], row["bayes_cp_upper"] = b.cp_interval
+            row["p_cpk_above"] = b.p_cpk_above
+        row["in_control"] = s.in_control
+        row["n_out_of_control"] = len(s.out_of_control)
+        row["step_part"] = self.step_part or ""
+        row["step_mm"] = s.step_size if self.step_part else math.nan
+        row["step_t"] = s.step_t
+        row["gain"] = self.gain
+        for tag, p in (("after", self.predicted), ("after_within", self.predicted_within)):
+            row[f"cpk_{tag}"] = p.cpk
+            row[f"cpk_{tag}_lower"], row[f"cpk_{tag}_upper"] = p.cpk_ci
+            row[f"bayes_cpk_{tag}"] = p.cpk_bayes
+            row[f"bayes_cpk_{tag}_lower"], row[f"bayes_cpk_{tag}_upper"] = p.cpk_bayes_interval
+        return row
+
+    def __repr__(self) -> str:
+        c, s = self.capability, self.stability
+        state = "in control" if s.in_control else "NOT in control"
+        step = f", step before {self.step_part}" if self.step_part else ""
+        return (
+            f"FeatureCapability({self.feature!r} at {self.characteristic}, n={c.n}, "
+            f"Cp {c.cp:.2f} {c.cp_ci!r}, Cpk {c.cpk:.2f} {c.cpk_ci!r}, Ppk {c.ppk:.2f}, "
+            f"{state}{step}, Cpk after compensation {self.predicted.cpk:.2f})"
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class CapabilityStudy:
+    """Capability of every feature over a run of parts (see [`capability_study`][])."""
+
+    study: str
+    parts: tuple[str, ...]
+    method: str
+    features: Mapping[str, FeatureCapability]
+    confidence: float
+    notes: tuple[str, ...] = ()
+
+    def __getitem__(self, feature: str) -> FeatureCapability:
+        return self.features[feature]
+
+    @property
+    def steps(self) -> dict[str, tuple[str, ...]]:
+        """Clear steps found by the stability checks: `{first part after: features}`."""
+        out: dict[str, list] = {}
+        for f in self.features.values():
+            if f.step_part:
+                out.setdefault(f.step_part, []).append(f.feature)
+        return {p: tuple(v) for p, v in out.items()}
+
+    def summary_rows(self) -> list[dict]:
+        return [f.summary() for f in self.features.values()]
+
+    def index_rows(self) -> list[dict]:
+        """One row per feature and index (value, confidence and credible intervals)."""
+        out = []
+        for f in self.features.values():
+            for r in f.capability.table():
+                out.append({"feature": f.feature, **r})
+            for tag, p in (("after", f.predicted), ("after_within", f.predicted_within)):
+                lo_b, hi_b = p.cpk_bayes_interval
+                out.append(
+                    {
+                        "feature": f.feature,
+                        "index": f"cpk_{tag}",
+                        "value": p.cpk,
+                        "lower": p.cpk_ci.lower,
+                        "upper": p.cpk_ci.upper,
+                        "bayes_median": p.cpk_bayes,
+                        "bayes_lower": lo_b,
+                        "bayes_upper": hi_b,
+                    }
+                )
+        return out
+
+    def part_rows(self) -> list[dict]:
+        """One row per part and feature: value, uncertainty, control-chart flags."""
+        out = []
+        for f in self.features.values():
+            s = f.stability
+            for i, (p, v, u) in enumerate(zip(f.parts, f.values, f.u, strict=True)):
+                out.append(
+                    {
+                        "part": p,
+                        "feature": f.feature,
+                        "value_mm": float(v),
+                        "u_mm": float(u),
+                        "moving_range_mm": float(abs(v - f.values[i - 1])) if i else math.nan,
+                        "center_mm": s.center,
+                        "lcl_mm": s.lcl,
+                        "ucl_mm": s.ucl,
+                        "flags": f.flags(i),
+                    }
+                )
+        return out
+
+    def __repr__(self) -> str:
+        return (
+            f"CapabilityStudy({self.study!r}: {len(self.parts)} parts, "
+            f"{len(self.features)} features, fits {self.method})"
+        )
+
+
+def _spans(idx, ids) -> str:
+    """Indices as part-id ranges: `part01..part04, part09`."""
+    idx = sorted(idx)
+    out, start = [], None
+    for k, i in enumerate(idx):
+        if start is None:
+            start = i
+        if k + 1 == len(idx) or idx[k + 1] != i + 1:
+            out.append(ids[start] if start == i else f"{ids[start]}..{ids[i]}")
+            start = None
+    return ", ".join(out)
+
+
+def capability_from_values(
+    values: Mapping[str, Sequence[float]],
+    tolerances: Mapping[str, tuple[float, float]],
+    *,
+    parts: Mapping[str, Sequence[str]] | Sequence[str] | None = None,
+    u: Mapping[str, Sequence[float]] | None = None,
+    u_systematic: Mapping[str, float] | None = None,
+    characteristic: str = "mid",
+    gain: float = 1.0,
+    confidence: float = 0.95,
+    threshold: float = 1.33,
+    sigma_method: str = "auto",
+    subtract_gauge: bool = False,
+    n_draws: int = 100_000,
+    run_length: int = 8,
+    trend_length: int = 7,
+    seed: int = 0,
+    study: str = "",
+    method: str = "",
+    notes: Sequence[str] = (),
+) -> CapabilityStudy:
+    """Capability, stability and predicted capability from per-part values (pure).
+
+    **Arguments:**
+
+    - `values`: by feature id, one value per part in production order (mm), e.g.
+      normal deviations or posterior means.
+    - `tolerances`: `(lower, upper)` by feature id; the target is the mid-point.
+    - `parts`: part ids (one list for all features, or by feature).
+    - `u`: per-part measurement uncertainties by feature (the gauge spread; subtracted
+      from the variances only with `subtract_gauge`).
+    - `u_systematic`: uncertainty of the realised mean shift by feature (mm).
+    - `gain`: fraction of the mean error the predicted compensation removes.
+    - the rest: see `compensate.capability` and `compensate.stability_check`.
+    """
+    feats = {}
+    notes = list(notes)
+    for fid, vals in values.items():
+        y = np.asarray(vals, dtype=float)
+        if isinstance(parts, Mapping):
+            pid = tuple(parts[fid])
+        elif parts is not None:
+            pid = tuple(parts)
+        else:
+            pid = tuple(f"{i + 1}" for i in range(y.size))
+        if len(pid) != y.size:
+            raise InputError(f"{len(pid)} part ids for {y.size} values", feature=fid)
+        uu = np.zeros(y.size) if u is None or fid not in u else np.asarray(u[fid], dtype=float)
+        if y.size < 3:
+            notes.append(f"{fid}: only {y.size} value(s); no capability")
+            continue
+        try:
+            feats[fid] = _feature_capability(
+                fid, y, pid, uu, tolerances[fid], float((u_systematic or {}).get(fid, 0.0)),
+                characteristic=characteristic, gain=gain, confidence=confidence,
+                threshold=threshold, sigma_method=sigma_method, subtract_gauge=subtract_gauge,
+                n_draws=n_draws, run_length=run_length, trend_length=trend_length, seed=seed,
+            )  # fmt: skip
+        except AnalysisError as e:
+            notes.append(f"{fid}: no capability: {e}")
+    all_parts = tuple(dict.fromkeys(p for f in feats.values() for p in f.parts))
+    return CapabilityStudy(
+        study=study,
+        parts=all_parts,
+        method=method,
+        features=MappingProxyType(feats),
+        confidence=confidence,
+        notes=tuple(notes),
+    )
+
+
+def _feature_capability(
+    fid, y, pid, uu, tolerance, u_off, *, characteristic, gain, confidence, threshold,
+    sigma_method, subtract_gauge, n_draws, run_length, trend_length, seed,
+) -> FeatureCapability:  # fmt: skip
+    """One feature's capability, stability and predicted capability (see
+    [`capability_from_values`][]); `AnalysisError` when the indices cannot be had."""
+    lo, hi = tolerance
+    gauge = float(np.sqrt(np.mean(uu**2))) if subtract_gauge else 0.0
+    cap = capability(
+        y,
+        lo,
+        hi,
+        sigma_method="mr" if sigma_method == "auto" else sigma_method,
+        confidence=confidence,
+        gauge_sd=gauge,
+        threshold=threshold,
+        n_draws=n_draws,
+        seed=seed,
+    )
+    stab = stability_check(y, run_length=run_length, trend_length=trend_length)
+    kw = dict(u_offset=u_off, gain=gain, threshold=threshold, n_draws=n_draws, seed=seed)
+    fnotes = []
+    if not stab.in_control:
+        fnotes.append(
+            "not in statistical control: Cp/Cpk (within sigma) describe what the "
+            "process could do if stable; Pp/Ppk describe this run"
+        )
+    return FeatureCapability(
+        feature=fid,
+        tolerance=(float(lo), float(hi)),
+        characteristic=characteristic,
+        parts=pid,
+        values=y,
+        u=uu,
+        capability=cap,
+        stability=stab,
+        predicted=predict_capability(cap, sigma="overall", **kw),
+        predicted_within=predict_capability(cap, sigma="within", **kw),
+        gain=float(gain),
+        notes=tuple(fnotes),
+    )
+
+
+def capability_study(
+    study,
+    probe=None,
+    *,
+    files: Sequence | None = None,
+    method: str | None = None,
+    seed: int = 0,
+    progress: Callable[[int, int, str], None] | None = None,
+    scheduler=None,
+    chunk_parts: int | None = None,
+    **overrides,
+) -> CapabilityStudy:
+    """Fit every part of a run and study each feature's capability.
+
+    **Arguments:**
+
+    - `study`: the study; its probe files (one per part, or a `part` column) or
+      `files` (paths) or `probe` (a `ProbeData`) give the parts in production order.
+    - `method`: fit method (default the study's). A part whose fit fails is refitted
+      with plain least squares and the note says so; a part that fails both is left out.
+    - `progress`: called as `progress(i, n, part)` after each part (after each chunk of
+      parts when the fits are batched).
+    - `scheduler`, `chunk_parts`: the parts are fitted in batches of `chunk_parts`
+      (one compiled call per feature kind; see `piecs_bayes.jobs.capability_values`), in this
+      process or, with `scheduler` (a Dask scheduler address or `distributed.Client`),
+      on a Dask cluster. Joint fits (`fit.free_transform`) are fitted part by part.
+    - `overrides`: any keyword of [`capability_from_values`][] (default: the study's
+      `[capability]` table).
+
+    **Returns:** a [`CapabilityStudy`][].
+    """
+    probe = probe if probe is not None else load_probe_data(study, files)
+    cfg = {**study.capability, **overrides}
+    at = cfg.pop("characteristic", "mid")
+    cfg.setdefault("gain", study.compensation.gain)
+    sds = source_sds(study)
+    parts = probe.parts
+    if len(parts) < 3:
+        raise InputError(
+            f"a capability study needs at least 3 parts, got {len(parts)} in {probe.file}"
+        )
+    notes = []
+    used = method or study.fit.method
+    if used == "bayes":
+        used = "robust"
+        notes.append("per-part values from the robust fits (the study asks for bayes)")
+    if not study.fit.free_transform:
+        values, us, pids, usys, more = capability_values(
+            study,
+            probe,
+            method=used,
+            at=at,
+            sources=sds,
+            progress=progress,
+            scheduler=scheduler,
+            chunk_parts=chunk_parts or CHUNK_PARTS,
+        )
+    elif scheduler is not None:
+        raise InputError("--scheduler: joint fits (fit.free_transform) run in-process only")
+    else:
+        values, us, pids, usys, more = _joint_values(study, probe, used, at, sds, progress)
+    notes += more
+    ordered = [fid for fid in study.profile.ids if fid in values]
+    return capability_from_values(
+        {fid: values[fid] for fid in ordered},
+        {f.id: f.tolerance for f in study.profile.features},
+        parts={fid: pids[fid] for fid in ordered},
+        u={fid: us[fid] for fid in ordered},
+        u_systematic=usys,
+        characteristic=at,
+        seed=seed,
+        study=study.name,
+        method=used,
+        notes=notes,
+        **cfg,
+    )
+
+
+def _joint_values(study, probe, used: str, at: str, sds, progress):
+    """Per-part characteristics of joint fits (`fit.free_transform`), part by part, in
+    the form `capability_values` returns them. A failed fit is retried with plain
+    least squares; a part that fails both is left out (said in the notes)."""
+    values: dict[str, list] = {}
+    us: dict[str, list] = {}
+    pids: dict[str, list] = {}
+    usys: dict[str, float] = {}
+    notes: list[str] = []
+    parts = probe.parts
+    for i, p in enumerate(parts):
+        fit = _fit_or_retry(study, probe.for_part(p), p, used, notes)
+        for f in () if fit is None else fit:
+            try:
+                c = feature_characteristic(f, at=at, sources=sds)
+            except AnalysisError as e:
+                notes.append(f"{p}: {f.id} left out: {e}")
+                continue
+            values.setdefault(f.id, []).append(c.mean)
+            us.setdefault(f.id, []).append(c.u_fit)
+            pids.setdefault(f.id, []).append(p)
+            usys[f.id] = c.u_systematic
+        if progress is not None:
+            progress(i + 1, len(parts), p)
+    return values, us, pids, usys, notes
+
+
+def _fit_or_retry(study, data, part: str, used: str, notes: list):
+    try:
+        return fit_study(study, data, method=used)
+    except AnalysisError as e:
+        if used == "lsq":
+            notes.append(f"{part}: left out, the fit failed: {e}")
+            return None
+        try:
+            fit = fit_study(study, data, method="lsq")
+        except AnalysisError as e2:
+            notes.append(f"{part}: left out, the fit failed: {e2}")
+            return None
+        notes.append(f"{part}: {used} fit failed ({e}); fitted with plain least squares")
+        return fit

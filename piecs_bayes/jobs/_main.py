@@ -1,0 +1,455 @@
+"""The main job on one study, end to end: [`run_job`][] -> [`JobResults`][].
+
+One call composes the public API in the order an engineer works:
+
+1. read the study and its probe data; **robust fit** of every feature of one part;
+2. **Bayesian fit** (emcee) with the study's error sources as nuisance parameters;
+3. **decisions** per feature (compensate with a gain, do not compensate, measure
+   more), from the robust fit's normal deviations (`jobs.decide_study`);
+4. the **adjusted tool path** (PIECS mirroring with the decisions' gains);
+5. its **uncertainty**: linearised (GUM) and, with the posterior, Monte Carlo
+   (JCGM 101): vertex covariances, pointwise and simultaneous bands, budget;
+6. the **adjusted part program** and its diff, when the study names a program;
+7. the **error specification** and the **tool-offset update**;
+8. a **capability study** when the probe data hold several parts (at least 3).
+
+Every step after the robust fit is optional (keyword switches). A step that
+cannot give an answer (an `AnalysisError` or `InputError` of that step only,
+e.g. a program block that maps to no feature) does not stop the job: the
+results say which step is unavailable and why (`JobResults.unavailable`). Bad
+input to the job itself (the study, the probe files) and a failed robust fit
+raise as usual.
+
+The results are one immutable bundle that the writers in `export` (tables,
+`report_html`, `report_pdf`) read; nothing in it is recomputed by them. The
+bundle also records the inputs (files with SHA-256 hashes), the package
+versions and the settings, so that a report can be reproduced.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import math
+import sys
+import time
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+from ..errors import AnalysisError, InputError, PiecsError
+from ..io import load_study
+from ..uncertainty import normal_deviation_draws
+from ._capability import capability_study
+from ._decide import decide_study
+from ._fit import (
+    adjust_study_program,
+    bayes_study,
+    compensate_study,
+    fit_study,
+    load_probe_data,
+    toolpath_uncertainty,
+)
+from ._machine import error_spec, tool_offsets
+from ._results import JobResults, hash_file, package_versions
+
+__all__ = ["run_job"]
+
+
+class _Progress:
+    """Progress lines: to a callable (as they are), to stderr with the elapsed time
+    (`True`), or nowhere (`False`)."""
+
+    def __init__(self, progress):
+        t0 = time.perf_counter()
+        if progress is True:
+            self.out = lambda msg: print(
+                f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True
+            )
+        elif callable(progress):
+            self.out = progress
+        else:
+            self.out = None
+
+    @property
+    def bar(self) -> bool:
+        """Whether the sampler shows its progress bar."""
+        return self.out is not None
+
+    def __call__(self, msg: str) -> None:
+        if self.out is not None:
+            self.out(msg)
+
+
+def _clip_gains(gains: Mapping[str, float]) -> dict[str, float]:
+    """Gains in [0, 1] (a Bayes-optimal gain can come back as 1 + 1 ulp)."""
+    out = {}
+    for fid, g in gains.items():
+        g = float(g)
+        out[fid] = min(max(g, 0.0), 1.0) if math.isfinite(g) else 0.0
+    return out
+
+
+@dataclass
+class _Run:
+    """The state of one run of the main job, passed from step to step."""
+
+    study: object
+    probe: object
+    say: _Progress
+    fit: object = None
+    gains: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+    unavailable: dict = field(default_factory=dict)
+    skipped: list = field(default_factory=list)
+    caught: list = field(default_factory=list)
+    out: dict = field(default_factory=dict)
+
+    @contextlib.contextmanager
+    def timed(self, step):
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[step] = self.timings.get(step, 0.0) + time.perf_counter() - t0
+
+
+def run_job(
+    study,
+    *,
+    part: str | None = None,
+    method: str | None = None,
+    bayes: bool = True,
+    nsteps: int | None = None,
+    seed: int = 0,
+    decisions: bool = True,
+    uncertainty: bool = True,
+    program: bool = True,
+    nose_radius: float | None = None,
+    tool_table=None,
+    errspec: bool = True,
+    capability: bool | str = "auto",
+    capability_files: Sequence | None = None,
+    progress: bool | Callable[[str], None] = False,
+) -> JobResults:
+    """Run the main job on one study (one part) and return the results bundle.
+
+    **Arguments:**
+
+    - `study`: a `Study` or the path of a study file.
+    - `part`: the part to fit when the probe data hold several (default: the first).
+    - `method`: `"robust"` or `"lsq"` (default: the study's `fit.method`; `"bayes"` there
+      means a robust fit first).
+    - `bayes`: also sample the posterior (`nsteps` per ensemble, default the study's
+      `[fit] bayes_steps`; `seed`). A run that has not converged warns
+      (`ConvergenceWarning`) and the results say so (`converged`, the posterior's
+      `problems`).
+    - `decisions`: decide per feature; the decisions' gains (0 unless "compensate")
+      then drive the path, the program and the error spec. Without it, the study's
+      `compensation.gain` does.
+    - `uncertainty`: linearised and (with `bayes`) Monte Carlo tool-path uncertainty.
+    - `program`: rewrite the study's part program (`study.part_program`) to the
+      adjusted path; `nose_radius` (mm) or `tool_table` (a `ToolTable` or a LinuxCNC
+      `.tbl` path in mm) let the result be checked for gouges with the nose radius
+      (default: the study's `[program] nose_radius` or `tool_table`, else `[offsets]
+      current_r`, else no nose-radius check).
+    - `errspec`: error specification and tool-offset update.
+    - `capability`: `"auto"` (when the probe data, or `capability_files`, hold at
+      least 3 parts), `True` or `False`.
+    - `progress`: `True` prints timed progress lines to stderr and shows the
+      sampler's progress bar; a callable receives the lines; `False` is silent.
+
+    **Returns:** a [`JobResults`][].
+    """
+    created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    run = _read(study, _Progress(progress))
+    part, part_note = _choose_part(run, part)
+    with run.timed("fit"):
+        run.fit = fit_study(run.study, run.probe, method=method, part=part)
+    run.say(f"fitted {len(run.fit.fits)} features ({run.fit.method}, part {run.fit.part})")
+    run.gains = _clip_gains({f.id: run.study.compensation.gain for f in run.study.profile.features})
+    _step_bayes(run, bayes, nsteps, seed)
+    _step_decisions(run, decisions)
+    _step_path(run, uncertainty)
+    nose_radius, tool_table = _nose_radius_and_tools(run.study, nose_radius, tool_table)
+    _step_program(run, program, nose_radius, tool_table)
+    _step_errspec(run, errspec)
+    _step_capability(run, capability, capability_files, method, seed)
+    run.say("done")
+    return _results(run, seed, nose_radius, tool_table, capability_files, created, part_note)
+
+
+def _read(study, say: _Progress) -> _Run:
+    t0 = time.perf_counter()
+    if not hasattr(study, "profile"):
+        study = load_study(study)
+    probe = load_probe_data(study)
+    run = _Run(study=study, probe=probe, say=say)
+    run.timings["read"] = time.perf_counter() - t0
+    say(f"read {study!r}: {len(probe)} probe points, {len(probe.parts)} part(s)")
+    return run
+
+
+def _choose_part(run: _Run, part):
+    """The part to fit; with several and none named, the last (production order), said."""
+    parts = run.probe.parts
+    if part is not None or len(parts) <= 1:
+        return part, ""
+    part = parts[-1]
+    note = (
+        f"the probe data hold {len(parts)} parts: part {part} (the last, in "
+        "production order) is fitted and compensated; choose another with --part"
+    )
+    run.say(note)
+    return part, note
+
+
+def _step_bayes(run: _Run, bayes: bool, nsteps, seed) -> None:
+    """2. The Bayesian fit; its warnings are recorded and re-issued."""
+    if not bayes:
+        run.skipped.append("bayes")
+        return
+    run.say("sampling the posterior (emcee)")
+    fit = None
+    with run.timed("bayes"), warnings.catch_warnings(record=True) as ws:
+        warnings.simplefilter("always")
+        try:
+            fit = bayes_study(
+                run.study, run.fit, run.probe, part=run.fit.part, nsteps=nsteps, seed=seed,
+                progress=run.say.bar,
+            )  # fmt: skip
+        except PiecsError as exc:
+            run.unavailable["bayes"] = str(exc)
+    for w in ws:  # re-issue outside the recorder: the caller's filters decide
+        run.caught.append(str(w.message))
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    run.out["bayes"] = fit
+    if fit is not None:
+        post = fit.posterior
+        run.say(
+            f"posterior: {len(post.names)} parameters, "
+            f"{'converged' if post.converged else 'NOT converged'}, "
+            f"{post.ess_per_second:.0f} effective samples/s"
+        )
+
+
+def _bayes_characteristics(bayes, decisions):
+    """Posterior mean and sd of each feature's normal deviation at the decision point."""
+    draws = bayes.deviation_samples
+    out = {}
+    for d, c in zip(decisions.decisions, decisions.estimates, strict=True):
+        if c is None or d.feature not in draws:
+            continue
+        vals = normal_deviation_draws(bayes.profile[d.feature], draws[d.feature], c.t)
+        out[d.feature] = (float(vals.mean()), float(vals.std(ddof=1)))
+    return MappingProxyType(out)
+
+
+def _step_decisions(run: _Run, decisions: bool) -> None:
+    """3. Decisions per feature; their gains drive the path, program and error spec."""
+    if not decisions:
+        run.skipped.append("decisions")
+        return
+    table = None
+    with run.timed("decisions"):
+        try:
+            table = decide_study(run.study, run.fit)
+            run.gains.update(_clip_gains(table.gains))
+            if run.out.get("bayes") is not None:
+                run.out["bayes_characteristics"] = _bayes_characteristics(run.out["bayes"], table)
+        except PiecsError as exc:
+            run.unavailable["decisions"] = str(exc)
+    run.out["decisions"] = table
+    if table is not None:
+        verdicts = ", ".join(f"{d.feature} {d.verdict}" for d in table.decisions)
+        run.say(f"decided: {verdicts}")
+
+
+def _step_path(run: _Run, uncertainty: bool) -> None:
+    """4. The adjusted tool path and 5. its uncertainty."""
+    with run.timed("path"):
+        try:
+            path = compensate_study(run.study, run.fit, gain=run.gains)
+        except AnalysisError as exc:
+            path = None
+            run.unavailable["path"] = str(exc)
+    run.out["path"] = path
+    if path is not None:
+        run.say(f"adjusted tool path: {path!r}")
+    if not uncertainty:
+        run.skipped.append("uncertainty")
+        return
+    if path is None:
+        run.unavailable["uncertainty"] = "no adjusted tool path"
+        return
+    unc = None
+    with run.timed("uncertainty"):
+        try:
+            unc = toolpath_uncertainty(
+                run.study, run.fit, run.probe, bayes=run.out.get("bayes"), gain=run.gains
+            )
+            unc = MappingProxyType(dict(unc))
+        except PiecsError as exc:
+            run.unavailable["uncertainty"] = str(exc)
+    run.out["uncertainty"] = unc
+    if unc is not None:
+        run.say(f"tool-path bounds: {unc['linearised']!r}")
+
+
+def _nose_radius_and_tools(study, nose_radius, tool_table):
+    """The nose radius for the gouge check: given, else `[program]`, else `[offsets]
+    current_r`; the tool table: given, else `[program] tool_table`."""
+    ps = getattr(study, "program_settings", None)
+    if nose_radius is None and ps is not None and ps.nose_radius is not None:
+        nose_radius = float(ps.nose_radius)
+    if nose_radius is None and "current_r" in study.offsets:
+        nose_radius = float(study.offsets["current_r"])
+    if tool_table is None and ps is not None and ps.tool_table is not None:
+        tool_table = ps.tool_table
+    return nose_radius, tool_table
+
+
+def _step_program(run: _Run, program: bool, nose_radius, tool_table) -> None:
+    """6. The adjusted part program, when the study names one."""
+    path = run.out.get("path")
+    if program and run.study.program is None:
+        run.unavailable["program"] = "the study names no part program (study.part_program)"
+    elif program and path is None:
+        run.unavailable["program"] = "no adjusted tool path"
+    elif not program:
+        run.skipped.append("program")
+    else:
+        adjustment = None
+        with run.timed("program"):
+            try:
+                adjustment = adjust_study_program(
+                    run.study, path, nose_radius=nose_radius, tool_table=tool_table
+                )
+            except PiecsError as exc:
+                run.unavailable["program"] = str(exc)
+        run.out["program"] = adjustment
+        if adjustment is not None:
+            run.say(f"adjusted program: {adjustment!r}")
+
+
+def _step_errspec(run: _Run, errspec: bool) -> None:
+    """7. The error specification and the tool-offset update."""
+    if not errspec:
+        run.skipped.append("errspec")
+        return
+    spec = upd = None
+    onotes: tuple[str, ...] = ()
+    with run.timed("errspec"):
+        try:
+            spec = error_spec(run.study, run.fit, gain=run.gains)
+        except PiecsError as exc:
+            run.unavailable["errspec"] = str(exc)
+        try:
+            upd, onotes = tool_offsets(run.study, run.fit)
+        except PiecsError as exc:
+            onotes = (f"no tool-offset update: {exc}",)
+    run.out.update(errspec=spec, offsets=upd, offset_notes=tuple(onotes))
+    if spec is not None:
+        run.say(f"error spec: {len(spec.tables)} table(s); tool offsets: {_offset_line(upd)}")
+
+
+def _step_capability(run: _Run, capability, capability_files, method, seed) -> None:
+    """8. A capability study over the parts of the probe data (or `capability_files`)."""
+    probe = run.probe
+    if capability_files is not None:
+        probe = load_probe_data(run.study, capability_files)
+    n_parts = len(probe.parts)
+    if capability is True or (capability == "auto" and n_parts >= 3):
+        every = max(1, n_parts // 6)
+
+        def tick(i, n, p):
+            if i % every == 0 or i == n:
+                run.say(f"capability: fitted {i}/{n} parts ({p})")
+
+        with run.timed("capability"):
+            try:
+                run.out["capability"] = capability_study(
+                    run.study, probe, method=method, seed=seed, progress=tick
+                )
+            except PiecsError as exc:
+                run.unavailable["capability"] = str(exc)
+    elif capability == "auto":
+        run.unavailable["capability"] = (
+            f"the probe data hold {n_parts} part(s); a capability study needs at least 3"
+        )
+    elif capability is not False:
+        raise InputError(f"capability: got {capability!r}, expected 'auto', True or False")
+    else:
+        run.skipped.append("capability")
+
+
+def _inputs(study, tool_table, capability_files) -> tuple:
+    inputs = [hash_file("study", study.path)]
+    inputs += [hash_file("probe", p) for p in study.probe_files]
+    if capability_files is not None:
+        inputs += [hash_file("probe (capability)", p) for p in capability_files]
+    if study.program is not None:
+        inputs.append(hash_file("program", study.program))
+    if tool_table is not None and not hasattr(tool_table, "get"):
+        inputs.append(hash_file("tool_table", tool_table))
+    return tuple(inputs)
+
+
+def _settings(run: _Run, seed, nose_radius) -> dict:
+    study, table = run.study, run.out.get("decisions")
+    bayes = run.out.get("bayes")
+    post = None if bayes is None else bayes.posterior
+    return {
+        "method": run.fit.method,
+        "loss": study.fit.loss,
+        "seed": seed,
+        "bayes_steps": None if post is None else post.nsteps,
+        "bayes_walkers": None if post is None else post.nwalkers,
+        "bayes_ensembles": None if post is None else post.n_ensembles,
+        "bayes_burn": None if post is None else post.burn,
+        "likelihood": study.fit.likelihood,
+        "gain": study.compensation.gain,
+        "max_correction_mm": study.compensation.max_correction,
+        "nose_radius_mm": nose_radius,
+        "decision_characteristic": None if table is None else table.characteristic,
+        "command": " ".join(sys.argv) if sys.argv and sys.argv[0] else "",
+    }
+
+
+def _results(run: _Run, seed, nose_radius, tool_table, capability_files, created, part_note):
+    out = run.out
+    return JobResults(
+        study=run.study,
+        part=run.fit.part,
+        fit=run.fit,
+        bayes=out.get("bayes"),
+        bayes_characteristics=out.get("bayes_characteristics"),
+        decisions=out.get("decisions"),
+        gains=MappingProxyType(run.gains),
+        path=out.get("path"),
+        uncertainty=out.get("uncertainty"),
+        program=out.get("program"),
+        nose_radius=nose_radius if out.get("program") is not None else None,
+        errspec=out.get("errspec"),
+        offsets=out.get("offsets"),
+        offset_notes=out.get("offset_notes", ()),
+        capability=out.get("capability"),
+        unavailable=MappingProxyType(run.unavailable),
+        skipped=tuple(run.skipped),
+        inputs=_inputs(run.study, tool_table, capability_files),
+        versions=MappingProxyType(package_versions()),
+        settings=MappingProxyType(_settings(run, seed, nose_radius)),
+        timings=MappingProxyType(run.timings),
+        created=created,
+        part_note=part_note,
+        warnings=tuple(run.caught),
+    )
+
+
+def _offset_line(upd) -> str:
+    if upd is None:
+        return "none"
+    if upd.blocked:
+        return "blocked"
+    return "update" if upd.any_update else "no change"

@@ -1,0 +1,156 @@
+"""The package stays layered, without import-linter (which `make lint-imports` runs
+on the same layers, `[tool.importlinter]` in pyproject.toml).
+
+Every module's imports, lazy ones inside functions included, are read with `ast`;
+each module of piecs_bayes belongs to the layer of its top-level package:
+
+    cli > export > jobs > uncertainty > gcode | fit | compensate > io > geometry
+        > errors | _config
+
+A module imports only its own package and the layers below it; siblings of one
+layer (`gcode | fit | compensate`, `errors | _config`) do not import each other;
+`piecs_bayes/__init__.py` imports only the bottom layer. Another package is used
+through its face (`__init__.py`): no `from ..fit._robust import x`, no
+`from ..fit import _helper`. No module is longer than `MAX_LINES`.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "piecs_bayes"
+MAX_LINES = 600
+
+#: top to bottom; one entry per layer, siblings of a layer together
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("cli",),
+    ("export",),
+    ("jobs",),
+    ("uncertainty",),
+    ("gcode", "fit", "compensate"),
+    ("io",),
+    ("geometry",),
+    ("errors", "_config"),
+)
+RANK = {top: rank for rank, layer in enumerate(LAYERS) for top in layer}
+BOTTOM = set(LAYERS[-1])
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str:
+    """The absolute name of what `from <...> import` names (relative imports resolved)."""
+    if node.level == 0:
+        return node.module or ""
+    base = module.split(".") if is_package else module.split(".")[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _imports(name: str, path: Path) -> list[tuple[int, str, str | None]]:
+    """`(line, target module, imported name or None)` for every import of piecs_bayes
+    modules in the file."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    is_package = path.name == "__init__.py"
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name, None) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            target = _resolve(name, is_package, node)
+            out += [(node.lineno, target, a.name) for a in node.names]
+    return [t for t in out if t[1] == "piecs_bayes" or t[1].startswith("piecs_bayes.")]
+
+
+def _top(target: str, imported: str | None) -> str | None:
+    """The top-level package (layer member) an import reaches; None for the root's face
+    (`from piecs_bayes import InputError`: the root re-exports the bottom layer only)."""
+    parts = target.split(".")
+    if len(parts) > 1:
+        return parts[1]
+    if imported is not None and (PACKAGE / imported).with_suffix(".py").exists():
+        return imported
+    if imported is not None and (PACKAGE / imported / "__init__.py").exists():
+        return imported
+    return None
+
+
+def _is_private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def test_every_module_belongs_to_a_layer():
+    tops = {name.split(".")[1] for name in _modules() if name != "piecs_bayes"}
+    assert sorted(tops - set(RANK)) == [], f"layers: {LAYERS}"
+
+
+def test_no_module_imports_a_higher_layer_or_a_sibling():
+    bad = []
+    for name, path in _modules().items():
+        own = name.split(".")[1] if name != "piecs_bayes" else None
+        for line, target, imported in _imports(name, path):
+            top = _top(target, imported)
+            if top is None or top == own:
+                continue
+            if own is None:
+                ok = top in BOTTOM
+            else:
+                ok = own in RANK and top in RANK and RANK[top] > RANK[own]
+            if not ok:
+                what = f"{target}.{imported}" if imported else target
+                why = "" if top in RANK else f" ({top!r} is in no layer)"
+                bad.append(f"{path.relative_to(ROOT)}:{line}: {name} imports {what}{why}")
+    assert bad == [], "\n".join(bad)
+
+
+def test_other_packages_are_used_through_their_face():
+    bad = []
+    for name, path in _modules().items():
+        own = name.split(".")[1] if name != "piecs_bayes" else None
+        for line, target, imported in _imports(name, path):
+            top = _top(target, imported)
+            if top is None or top == own:
+                continue
+            # below the top-level package: piecs_bayes.fit._robust is fit's own
+            private_module = any(_is_private(p) for p in target.split(".")[2:])
+            private_name = (
+                imported is not None and _is_private(imported) and imported != top  # _config
+            )
+            if private_module or private_name:
+                what = f"from {target} import {imported}" if imported else f"import {target}"
+                bad.append(f"{path.relative_to(ROOT)}:{line}: {name}: {what}")
+    assert bad == [], "\n".join(bad)
+
+
+def test_no_module_is_longer_than_the_limit():
+    long = {
+        str(p.relative_to(ROOT)): n
+        for p in _modules().values()
+        if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES
+    }
+    assert long == {}, f"modules over {MAX_LINES} lines"
+
+
+def test_the_checks_see_imports():
+    # the helpers themselves: a relative, a lazy and a root import are all found
+    src = (
+        "from ..fit._robust import _x\nfrom .. import errors\ndef f():\n    import piecs_bayes.io\n"
+    )
+    tree = ast.parse(src)
+    nodes = [n for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))]
+    targets = [
+        _resolve("piecs_bayes.export._report", False, n) if isinstance(n, ast.ImportFrom) else ""
+        for n in nodes
+    ]
+    assert targets[:2] == ["piecs_bayes.fit._robust", "piecs_bayes"]
+    assert _top("piecs_bayes", "errors") == "errors"
+    assert _top("piecs_bayes.fit._robust", "_x") == "fit"
