@@ -30,7 +30,7 @@ conformance: $(STAMP)
 	  SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
 	  $$SUDO apt-get update && $$SUDO apt-get install -y linuxcnc-uspace; }
 	@command -v rs274 >/dev/null || { echo "rs274 is still not installed" >&2; exit 1; }
-	$(BIN)/python -m pytest -q -m rs274 tests/test_gcode_rs274.py tests/test_gcode_cli.py
+	$(BIN)/python -m pytest -q -m rs274 tests/gcode/test_gcode_rs274.py tests/cli/test_gcode_cli.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check piecs_bayes tests

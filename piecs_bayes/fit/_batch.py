@@ -110,7 +110,7 @@ def fit_profiles(
       steps as its slowest problem, and the engine's robust stages make LM take
       ~125 steps per problem; the kernel takes ~12-20 and is 10-20x faster than
       `"lm"`, with the same minimum (~1e-10 mm, 1e-7 standard errors, on the batch
-      data: `tests/test_batch.py`).
+      data: `tests/fit/test_batch.py`).
     - `rtol`, `atol`, `max_steps`: as in [`least_squares`][] (`fit_profile`'s
       defaults).
     - `chunk_size`: parts per compiled call (memory grows with it).

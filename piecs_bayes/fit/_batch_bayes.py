@@ -18,7 +18,7 @@ Moves: the package's one vocabulary (`piecs_bayes.fit._moves`): `"stretch"`
 evolution (emcee's `DEMove`, $\gamma_0 = 2.38/\sqrt{2d}$, $\sigma_\gamma = 10^{-5}$)
 and 20 % stretch, the same mixture [`sample_posterior`][] hands to emcee. The
 move is drawn per ensemble and step.
-Validated against emcee on the same posteriors (`tests/test_batch.py`,
+Validated against emcee on the same posteriors (`tests/fit/test_batch.py`,
 `benchmarks/bench_scale.py`).
 
 Diagnostics per part are [`sample_posterior`][]'s: split $\hat R$ across the

@@ -17,7 +17,7 @@ statistics of the result are then computed **with `_solve_core`'s formulas**
 number, outlier flags, MAD residual sd, the stationarity check): ~6 steps and
 ~15 us per problem.
 
-`tests/test_batch.py` checks every field against the per-part loop (the same
+`tests/fit/test_batch.py` checks every field against the per-part loop (the same
 minimum to ~1e-10 mm, 1e-6 standard errors). A problem the kernel does not
 solve is re-solved by the engine's LM under `solver="auto"`, so a failure
 carries the engine's status and message. If `_solve_core`'s statistics change,

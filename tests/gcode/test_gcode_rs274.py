@@ -26,7 +26,7 @@ from piecs_bayes.gcode import (
     run_rs274,
 )
 
-DATA = Path(__file__).parent / "data" / "gcode"
+DATA = Path(__file__).resolve().parents[1] / "data" / "gcode"
 TABLE = DATA / "tools.tbl"
 CORPUS = sorted(DATA.glob("*.ngc"))
 GOUGES = sorted((DATA / "gouge").glob("*.ngc"))

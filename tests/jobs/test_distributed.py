@@ -18,7 +18,7 @@ from piecs_bayes.jobs import load_probe_data
 
 distributed = pytest.importorskip("distributed")
 
-BATCH = Path(__file__).resolve().parents[1] / "data" / "batch" / "study.toml"
+BATCH = Path(__file__).resolve().parents[2] / "data" / "batch" / "study.toml"
 
 
 @pytest.fixture(scope="module")

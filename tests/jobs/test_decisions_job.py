@@ -38,7 +38,7 @@ from piecs_bayes.jobs.simulate import (
     study_toml_text,
 )
 
-DATA = Path(__file__).resolve().parents[1] / "data"
+DATA = Path(__file__).resolve().parents[2] / "data"
 DEMO = DATA / "demo" / "study.toml"
 BATCH = DATA / "batch" / "study.toml"
 

@@ -33,7 +33,7 @@ from hypothesis import strategies as st
 
 from piecs_bayes.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "data" / "demo"
 GCODE = ROOT / "tests" / "data" / "gcode"
 

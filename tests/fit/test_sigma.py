@@ -34,7 +34,7 @@ from piecs_bayes.jobs.simulate import (
     simulate_parts,
 )
 
-DEMO = Path(__file__).resolve().parents[1] / "data" / "demo" / "study.toml"
+DEMO = Path(__file__).resolve().parents[2] / "data" / "demo" / "study.toml"
 PROFILE = demo_profile()
 TRUTH = process_deviations(PROFILE, DEMO_ERRORS)
 FEW = {"face_end": 3, "dia_24": 8, "taper": 4, "dia_30": 5, "fillet": 5, "shoulder": 6, "dia_44": 7}

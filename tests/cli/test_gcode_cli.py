@@ -11,7 +11,7 @@ from piecs_bayes.cli import _gcode as _cli_gcode
 from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.gcode import nose_compensate, read_gcode, read_tool_table, rs274_path
 
-DATA = Path(__file__).parent / "data" / "gcode"
+DATA = Path(__file__).resolve().parents[1] / "data" / "gcode"
 PROGRAM = DATA / "01_od_dia_mm_t3_g42.ngc"
 TABLE = DATA / "tools.tbl"
 

@@ -24,7 +24,7 @@ from piecs_bayes.jobs import (
 )
 from piecs_bayes.uncertainty import linearised_toolpath
 
-BATCH = Path(__file__).resolve().parents[1] / "data" / "batch" / "study.toml"
+BATCH = Path(__file__).resolve().parents[2] / "data" / "batch" / "study.toml"
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +92,7 @@ def test_densely_probed_features_equal_the_loop():
     CPU runtime hung inside the kernel there) are fitted by LM, twice, the same."""
     import sys
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
     from _common import simulate_fleet
 
     from piecs_bayes.fit import fit_profile

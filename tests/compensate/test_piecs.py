@@ -22,7 +22,7 @@ from piecs_bayes.jobs.simulate import (
     simulate_probe,
 )
 
-DATA = Path(__file__).resolve().parents[1] / "data"
+DATA = Path(__file__).resolve().parents[2] / "data"
 
 PROFILE = demo_profile()
 TRUTH = process_deviations(PROFILE, DEMO_ERRORS)

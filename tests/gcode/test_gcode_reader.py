@@ -22,7 +22,7 @@ from piecs_bayes.gcode import (
 from piecs_bayes.gcode._rs274 import parse_canon
 from piecs_bayes.geometry import Arc, Line
 
-DATA = Path(__file__).parent / "data" / "gcode"
+DATA = Path(__file__).resolve().parents[1] / "data" / "gcode"
 CORPUS = sorted(DATA.glob("*.ngc")) + sorted(DATA.glob("*/*.ngc"))
 
 

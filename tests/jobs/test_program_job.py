@@ -6,7 +6,7 @@ from pathlib import Path
 
 from piecs_bayes.cli import main
 
-DEMO = Path(__file__).resolve().parents[1] / "data" / "demo"
+DEMO = Path(__file__).resolve().parents[2] / "data" / "demo"
 WORD = re.compile(r"([A-Z])([-+]?\d*\.?\d+)")
 
 

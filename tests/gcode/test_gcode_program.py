@@ -18,8 +18,8 @@ from piecs_bayes.gcode import (
 from piecs_bayes.geometry import Arc, Line, Profile
 from piecs_bayes.io import write_text_atomic
 
-DATA = Path(__file__).parent / "data" / "gcode" / "adjust"
-DEMO = Path(__file__).parent.parent / "data" / "demo"
+DATA = Path(__file__).resolve().parents[1] / "data" / "gcode" / "adjust"
+DEMO = Path(__file__).resolve().parents[2] / "data" / "demo"
 
 
 def _profile(v, fillet_c, round_c, ids=None):

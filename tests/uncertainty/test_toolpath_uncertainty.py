@@ -19,7 +19,7 @@ from piecs_bayes.uncertainty import (
     linearised_toolpath,
 )
 
-DEMO = Path(__file__).resolve().parents[1] / "data" / "demo" / "study.toml"
+DEMO = Path(__file__).resolve().parents[2] / "data" / "demo" / "study.toml"
 FULL = demo_profile()
 TRUTH_ALL = process_deviations(FULL, DEMO_ERRORS)
 

@@ -21,7 +21,7 @@ from piecs_bayes.gcode import (
     tip_offset,
 )
 
-DATA = Path(__file__).parent / "data" / "gcode"
+DATA = Path(__file__).resolve().parents[1] / "data" / "gcode"
 R = 0.5  # nose radius of the hand-computed programs (G42.1 D1)
 
 # OD step, tool right of travel (G42): entry, -Z, up a shoulder (concave), -Z (convex).
