@@ -57,16 +57,6 @@ __all__ = [
 
 #: the fixed characteristic points, as fractions of the nominal feature
 AT_FRACTION = {"start": 0.0, "mid": 0.5, "end": 1.0}
-#: sensitivity of delta to each systematic source, from the point q and normal n
-SYSTEMATIC_SOURCES = (
-    "ball_radius",
-    "pretravel",
-    "x_centre",
-    "z_offset",
-    "scale_x",
-    "scale_z",
-    "rotation",
-)
 
 
 def at_fractions(feature, at: str) -> np.ndarray:
