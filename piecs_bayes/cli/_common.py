@@ -1,15 +1,28 @@
 """What every command shares: the console, the common options, the output folder and
-the protected writer (never an input file), the fit of one part from the options."""
+the protected writer (never an input file), the fit of one part from the options,
+the route to the machine (`--apply`, `--alternatives`) and the closing lines."""
 
 from __future__ import annotations
 
 import argparse
+import re
 import time
+import unicodedata
 from pathlib import Path
 
 from . import _types as T
 
-__all__ = ["Console", "add_common", "subcommand", "out_dir", "write", "fit_from_args"]
+__all__ = [
+    "Console",
+    "add_apply",
+    "add_common",
+    "finish",
+    "fit_from_args",
+    "out_dir",
+    "slug",
+    "subcommand",
+    "write",
+]
 
 
 class Console:
@@ -29,7 +42,10 @@ class Console:
 def add_common(p: argparse.ArgumentParser, *, out: bool = True) -> None:
     if out:
         p.add_argument(
-            "--out", type=Path, default=None, help="output folder (default: reports/<study name>)"
+            "--out",
+            type=Path,
+            default=None,
+            help="output folder (default: reports/<slug of the study's [study] name>)",
         )
     p.add_argument(
         "--seed", type=T.nonneg_int, default=0, help="random seed for anything stochastic"
@@ -52,10 +68,55 @@ def subcommand(sub, name: str, help_: str, example: str | None = None) -> argpar
     )
 
 
+def slug(name: str) -> str:
+    """`name` as a folder name: ASCII, lower case, words joined by `-`
+    (``"Demo stepped shaft"`` -> ``"demo-stepped-shaft"``); `""` when nothing is left."""
+    text = unicodedata.normalize("NFKD", str(name)).encode("ascii", "ignore").decode()
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
+
+
 def out_dir(args, study) -> Path:
+    """`--out`, else ``reports/<slug of [study] name>`` (else of the file's stem), so
+    that two studies both called study.toml write to different folders."""
     if args.out is not None:
         return args.out
-    return Path("reports") / study.path.stem
+    return Path("reports") / (slug(study.name) or slug(study.path.stem) or "study")
+
+
+def add_apply(p: argparse.ArgumentParser, *, alternatives: bool = True) -> None:
+    """`--apply ROUTE` (and `--alternatives`): the one route to the machine."""
+    from ..io import APPLY_ROUTES
+
+    p.add_argument(
+        "--apply",
+        choices=APPLY_ROUTES,
+        default=None,
+        help="the one route of the correction to the machine (default: the study's "
+        "[compensation] apply, else 'program' when it names a part program, else "
+        "'errspec'); only this route's files are written",
+    )
+    if alternatives:
+        p.add_argument(
+            "--alternatives",
+            action="store_true",
+            help="also write the other routes' files, each marked 'alternative: do not "
+            "combine' (never load two routes: each carries the whole correction)",
+        )
+
+
+def finish(console: Console, out: Path, written: list, machine=None) -> None:
+    """The closing lines: every file written (alternatives marked), what to load on
+    the machine, and "done" last."""
+    from ..export import ALTERNATIVE
+
+    console.say(f"wrote {len(written)} file(s) in {out}:")
+    for p in written:
+        mark = machine is not None and machine.is_alternative(p)
+        console.say(f"  {p}" + (f"   ({ALTERNATIVE})" if mark else ""))
+    if machine is not None:
+        for line in machine.instructions():
+            console.say(line)
+    console.step("done")
 
 
 def write(out: Path, name: str, text: str, study, console: Console, written: list) -> Path:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import _types as T
-from ._common import add_common, fit_from_args, out_dir, subcommand, write
+from ._common import add_apply, add_common, finish, fit_from_args, out_dir, subcommand, write
 from ._outputs import bayes_from_args, print_fit, write_bayes, write_bounds, write_fit
 
 __all__ = ["register"]
@@ -43,7 +43,8 @@ def register(sub) -> None:
     p = subcommand(
         sub,
         "compensate",
-        "Fit, mirror the deviations and write the adjusted tool-path vertices.",
+        "Fit, mirror the deviations and write the adjusted tool-path vertices and the "
+        "machine files of one route (--apply).",
         EXAMPLES["compensate"],
     )
     p.add_argument("study", type=Path, help="study file (TOML)")
@@ -64,7 +65,8 @@ def register(sub) -> None:
         "--program-out",
         type=Path,
         default=None,
-        help="write the adjusted part program here (and FILE.diff); never the input",
+        help="route 'program': write the adjusted part program here (and FILE.diff) instead "
+        "of OUT/<stem>_adjusted<suffix>; never the input",
     )
     p.add_argument(
         "--nose-radius",
@@ -72,6 +74,7 @@ def register(sub) -> None:
         default=None,
         help="tool-nose radius (mm) for the gouge check (default: the study's [program])",
     )
+    add_apply(p)
     add_common(p)
     p.set_defaults(func=cmd_compensate)
 
@@ -103,10 +106,11 @@ def cmd_fit(args, console) -> int:
 
 
 def cmd_compensate(args, console) -> int:
-    from ..export import path_csv, write_compensation_outputs
-    from ..jobs import compensate_study
+    from ..export import path_csv
+    from ..jobs import apply_route, compensate_study
 
     study, probe, fit = fit_from_args(args, console)
+    route, why = apply_route(study, args.apply)
     path = compensate_study(study, fit, gain=args.gain)
     console.step(f"adjusted tool path: {path!r}")
     out = out_dir(args, study)
@@ -118,24 +122,42 @@ def cmd_compensate(args, console) -> int:
         bayes = bayes_from_args(args, study, probe, fit, console)
         write_bayes(out, study, bayes, console, written)
     gain = study.compensation.gain if args.gain is None else args.gain
+    console.step("tool-path uncertainty (GUM" + (", Monte Carlo)" if bayes else ")"))
     write_bounds(out, study, probe, fit, bayes, gain, console, written)
-    files = write_compensation_outputs(  # error spec, LinuxCNC tables, tool offsets
-        study, fit, out, gain=args.gain, protect=[study.path, *study.probe_files]
-    )
-    written += files.written
-    for line in files.lines():
-        console.say(line)
-    if args.program_out is not None:
-        from ..jobs import adjust_study_program
-
-        adj = adjust_study_program(study, path, nose_radius=args.nose_radius)
-        console.step(f"adjusted program: {adj!r}")
-        write(args.program_out.parent, args.program_out.name, adj.text, study, console, written)
-        diff = args.program_out.with_name(args.program_out.name + ".diff")
-        write(diff.parent, diff.name, adj.diff, study, console, written)
-    for p in written:
-        console.say(f"wrote {p}")
+    machine = _machine_files(args, study, fit, path, out, route, why, console)
+    written += machine.written
+    finish(console, out, written, machine)
     return 0
+
+
+def _machine_files(args, study, fit, path, out, route, why, console):
+    """The route's machine files (and the alternatives, on request); the adjusted
+    program only when the route or the alternatives need it."""
+    from ..errors import PiecsError
+    from ..export import write_machine_files
+    from ..jobs import adjust_study_program
+
+    adj, unavailable = None, {}
+    if study.program is None:
+        unavailable["program"] = "the study names no part program (study.part_program)"
+    elif route == "program" or args.alternatives:
+        try:
+            output = None if args.program_out is None else str(args.program_out)
+            adj = adjust_study_program(study, path, nose_radius=args.nose_radius, output=output)
+        except PiecsError as exc:
+            if route == "program":
+                raise
+            unavailable["program"] = str(exc)
+        else:
+            console.step(f"adjusted program: {adj!r}")
+    inputs = [study.path, *study.probe_files] + ([study.program] if study.program else [])
+    machine = write_machine_files(
+        study, fit, out, route=route, why=why, alternatives=args.alternatives, program=adj,
+        program_path=args.program_out, unavailable=unavailable, gain=args.gain, protect=inputs,
+    )  # fmt: skip
+    for line in machine.lines():
+        console.say(line)
+    return machine
 
 
 def cmd_simulate(args, console) -> int:

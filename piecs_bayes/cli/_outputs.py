@@ -28,11 +28,14 @@ def bayes_from_args(args, study, probe, fit, console):
 def write_bayes(out, study, bayes, console, written):
     from ..export import posterior_csv
 
+    console.step("writing the posterior: posterior.csv (summary) and posterior.nc (draws)")
     write(out, "posterior.csv", posterior_csv(bayes), study, console, written)
     from ..io import write_file_atomic
 
-    path = write_file_atomic(out / "posterior.nc", bayes.posterior.to_netcdf, protect=[study.path])
+    # the full InferenceData: dims, units, observed data, log likelihood, prior
+    path = write_file_atomic(out / "posterior.nc", bayes.to_netcdf, protect=[study.path])
     written.append(path)
+    console.step(f"wrote posterior.nc ({path.stat().st_size / 1e6:.1f} MB)")
 
 
 def write_fit(out, study, fit, console, written):

@@ -1,13 +1,15 @@
 """``piecs-bayes report``: run the main job on a study and write the report.
 
-- ``report STUDY --out DIR [--part P] [--no-bayes] [--steps N] [--nose-radius R]``
-  runs `piecs_bayes.jobs.run_job` (robust and Bayesian fit, decisions,
-  adjusted tool path with its bounds, adjusted program, error spec and tool
-  offsets, capability when the probe data hold several parts) with progress
+- ``report STUDY --out DIR [--part P] [--no-bayes] [--steps N] [--nose-radius R]
+  [--apply ROUTE]`` runs `piecs_bayes.jobs.run_job` (robust and Bayesian fit,
+  decisions, adjusted tool path with its bounds, adjusted program, error spec and
+  tool offsets, capability when the probe data hold several parts) with progress
   shown, and writes ``report.html`` (one self-contained file) and ``report.pdf``.
 
-``piecs-bayes demo`` runs the same job and also writes every results table.
-Errors: bad input exits 2, a failed analysis exits 1.
+``piecs-bayes demo`` runs the same job and also writes every results table and the
+machine files of one route (``--apply``; ``--alternatives`` adds the others,
+marked), then says what to load. Errors: bad input exits 2, a failed analysis
+exits 1.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import _types as T
-from ._common import add_common, out_dir, subcommand, write
+from ._common import add_apply, add_common, finish, out_dir, subcommand, write
 from ._outputs import print_fit, write_bayes, write_fit, write_unc
 
 __all__ = ["register", "job_options", "run_job_from_args", "write_report"]
@@ -27,8 +29,9 @@ EXAMPLE = (
 )
 
 
-def job_options(p) -> None:
-    """The options of the main job shared by ``report`` and ``demo``."""
+def job_options(p, *, alternatives: bool = False) -> None:
+    """The options of the main job shared by ``report`` and ``demo`` (which writes
+    machine files, and so takes `--alternatives`)."""
     p.add_argument("--part", default=None, help="part id when the probe data holds several parts")
     p.add_argument(
         "--no-bayes", action="store_true", help="skip the Bayesian fit (and Monte Carlo bounds)"
@@ -49,6 +52,7 @@ def job_options(p) -> None:
     p.add_argument(
         "--tool-table", type=Path, default=None, help="LinuxCNC tool table (.tbl, mm) instead"
     )
+    add_apply(p, alternatives=alternatives)
 
 
 def register(subparsers) -> None:
@@ -73,12 +77,12 @@ def register(subparsers) -> None:
         subparsers,
         "demo",
         "Run the main job on a study end to end (robust and Bayesian fit, decisions, adjusted "
-        "tool path with bounds, adjusted program, error spec, tool offsets, report) and list "
-        "what it wrote.",
+        "tool path with bounds, the machine files of one route: adjusted program, error spec "
+        "or tool offsets, report), list what it wrote and say what to load on the machine.",
         EXAMPLE_DEMO,
     )
     p.add_argument("study", type=Path, help="study file (TOML)")
-    job_options(p)
+    job_options(p, alternatives=True)
     add_common(p)
     p.set_defaults(func=cmd_demo)
 
@@ -99,6 +103,7 @@ def run_job_from_args(args, console):
         nose_radius=args.nose_radius,
         tool_table=args.tool_table,
         progress=False if console.quiet else console.step,
+        apply=args.apply,
     )
 
 
@@ -107,11 +112,12 @@ def write_report(res, out: Path, console, written: list) -> None:
     from ..export import report_files
     from ..io import write_bytes_atomic, write_text_atomic
 
-    console.step("drawing the report")
+    console.step("drawing the report figures, then writing report.html and report.pdf")
     text, pdf = report_files(res)
     inputs = [f.path for f in res.inputs]
     written.append(write_text_atomic(out / "report.html", text, protect=inputs))
     written.append(write_bytes_atomic(out / "report.pdf", pdf, protect=inputs))
+    console.step(f"wrote the report ({len(pdf) / 1e6:.1f} MB PDF)")
 
 
 def cmd_report(args, console) -> int:
@@ -121,60 +127,65 @@ def cmd_report(args, console) -> int:
     write_report(res, out, console, written)
     for step, why in res.unavailable.items():
         console.say(f"{step}: not available: {why}")
-    for p in written:
-        console.say(f"wrote {p}")
+    console.say(
+        f"route to the machine: {res.apply} ({res.apply_why}); `piecs-bayes demo` or "
+        "`compensate` writes its files"
+    )
+    finish(console, out, written)
     return 0
 
 
 def cmd_demo(args, console) -> int:
-    """The main job end to end: every results table, the machine files and the report."""
-    from ..export import (
-        decisions_csv,
-        decisions_json,
-        decisions_text,
-        path_csv,
-        write_compensation_outputs,
-    )
-    from ..io import write_text_atomic
+    """The main job end to end: every results table, the machine files of one route
+    and the report."""
+    from ..export import decisions_csv, decisions_json, decisions_text, path_csv
 
     console.say(f"piecs-bayes demo on {args.study}")
     res = run_job_from_args(args, console)
     study, fit = res.study, res.fit
-    print_fit(fit, console)
     out = out_dir(args, study)
+    console.step(f"writing the results to {out}")
+    print_fit(fit, console)
     written: list[Path] = []
     write_fit(out, study, fit, console, written)
     if res.bayes is not None:
         write_bayes(out, study, res.bayes, console, written)
         console.say(res.bayes.posterior.summary())
+    machine = _machine_files(args, res, out, console)
+    written += machine.written
     if res.decisions is not None:
-        write(out, "decisions.json", decisions_json(res.decisions), study, console, written)
+        doc = decisions_json(res.decisions, apply=machine.as_dict())
+        write(out, "decisions.json", doc, study, console, written)
         write(out, "decisions.csv", decisions_csv(res.decisions), study, console, written)
         console.say(decisions_text(res.decisions))
     if res.path is not None:
         write(out, "toolpath.csv", path_csv(res.path), study, console, written)
     if res.uncertainty is not None:
         write_unc(out, study, res.uncertainty, console, written)
-    if res.program is not None:
-        inputs = [f.path for f in res.inputs]
-        stem, suffix = study.program.stem, study.program.suffix
-        for name, text in (
-            (f"{stem}_adjusted{suffix}", res.program.text),
-            (f"{stem}.diff", res.program.diff),
-        ):
-            written.append(write_text_atomic(out / name, text, protect=inputs))
-        console.say(res.program.diff)
-    if res.errspec is not None:
-        files = write_compensation_outputs(  # error spec, LinuxCNC tables, tool offsets
-            study, fit, out, gain=dict(res.gains), protect=[f.path for f in res.inputs]
-        )
-        written += files.written
-        for line in files.lines():
-            console.say(line)
     write_report(res, out, console, written)
     for step, why in res.unavailable.items():
         console.say(f"{step}: not available: {why}")
-    console.step(f"done; outputs in {out}:")
-    for p in written:
-        console.say(f"  {p}")
+    finish(console, out, written, machine)
     return 0
+
+
+def _machine_files(args, res, out: Path, console):
+    """The chosen route's machine files (and the alternatives, on request)."""
+    from ..export import write_machine_files
+
+    unavailable = {}
+    if "program" in res.unavailable:
+        unavailable["program"] = res.unavailable["program"]
+    if res.errspec is None:
+        why = res.unavailable.get("errspec", "the job made no error spec")
+        unavailable.update(errspec=why, tool_offset=why)
+    machine = write_machine_files(
+        res.study, res.fit, out, route=res.apply, why=res.apply_why,
+        alternatives=args.alternatives, program=res.program, unavailable=unavailable,
+        gain=dict(res.gains), protect=[f.path for f in res.inputs],
+    )  # fmt: skip
+    if "program" in machine.files:
+        console.say(res.program.diff)
+    for line in machine.lines():
+        console.say(line)
+    return machine

@@ -14,7 +14,7 @@ taken over it (deterministic quantile draws), $p_c$ uses the $t_\\nu$ cdf and th
 coverage factor is $t_\\nu$ at the probability $k_\\text{cov}$ has under the normal
 (95.45 % for $k = 2$, JCGM 100 G.6).
 
-**Verdict**:
+**Verdict** (`_verdict`, which writes the reasons in the same branch that picks it):
 
 1. `compensate` (with the Bayes gain) when the Bayes action adjusts (and, when
    `require_significance`, $p_\\text{exceed} \\ge$ `p_significant`), its correction is
@@ -28,6 +28,10 @@ coverage factor is $t_\\nu$ at the probability $k_\\text{cov}$ has under the nor
    would decide it assumes the random part of $u$ shrinks as $1/\\sqrt n$ (a
    systematic part `u_systematic` does not); when no number of points decides, the
    Bayes action is taken and the reason says so.
+
+**As drawn.** The numbers are normal deviations; `coordinate` and `scale` say how the
+tolerance is drawn (`geometry.drawn_scale`: 2 on a diameter) so that the reasons and
+the `drawn_*` values speak in the drawing's terms (µm on the diameter, ...).
 """
 
 from __future__ import annotations
@@ -36,19 +40,17 @@ import functools
 import math
 import numbers
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from scipy import special
 
 from ..errors import InputError
-from ._actions import ActionLoss, _Core, _evaluate
+from ._actions import ActionLoss, _evaluate
 from ._conformance import Conformance
 from ._settings import DecisionSettings
+from ._verdict import Verdict, _Words, clear_verdict, conclude
 
 __all__ = ["Decision", "decide"]
-
-Verdict = Literal["compensate", "do not compensate", "measure more"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +63,10 @@ class Decision:
     the prior when one is set. `actions` lists every candidate with its expected loss
     (the last is `bayes`); `best_action` is the one with the lowest loss;
     `more_points` is the extra probe points a "measure more" verdict asks for.
+    `reasons` end with the conclusion, which starts with the verdict. `coordinate` and
+    `scale` give the drawn deviation (`scale` × normal deviation, e.g. on the diameter):
+    `drawn_estimate`, `drawn_expanded`, `drawn_tolerance`, `drawn_null_band`,
+    `drawn_correction`.
     """
 
     feature: str | None
@@ -85,13 +91,44 @@ class Decision:
     more_points: int | None
     reasons: tuple[str, ...]
     dof: float = math.inf
+    coordinate: str = "normal"
+    scale: float = 1.0
+
+    @property
+    def drawn_estimate(self) -> float:
+        return self.scale * self.estimate
+
+    @property
+    def drawn_expanded(self) -> float:
+        """Expanded uncertainty U of the deviation as measured, as drawn."""
+        return abs(self.scale) * self.conformance_before.expanded
+
+    @property
+    def drawn_tolerance(self) -> tuple[float, float]:
+        lo, hi = sorted((self.scale * self.tolerance[0], self.scale * self.tolerance[1]))
+        return lo, hi
+
+    @property
+    def drawn_null_band(self) -> float:
+        return abs(self.scale) * self.null_band
+
+    @property
+    def drawn_correction(self) -> float:
+        return self.scale * self.correction
 
     def as_row(self) -> dict:
-        """A flat dict for a verdict table (JSON/CSV)."""
+        """A flat dict for a verdict table (JSON/CSV): the drawn values first."""
         row = {
             "feature": self.feature,
             "verdict": self.verdict,
             "gain": self.gain,
+            "coordinate": self.coordinate,
+            "deviation_drawn_mm": self.drawn_estimate,
+            "U_drawn_mm": self.drawn_expanded,
+            "tolerance_drawn_lower_mm": self.drawn_tolerance[0],
+            "tolerance_drawn_upper_mm": self.drawn_tolerance[1],
+            "null_band_drawn_mm": self.drawn_null_band,
+            "correction_drawn_mm": self.drawn_correction,
             "correction_mm": self.correction,
             "u_correction_mm": self.u_correction,
             "estimate_mm": self.estimate,
@@ -117,8 +154,8 @@ class Decision:
         head = f"Decision({self.feature!r}: {self.verdict.upper()}"
         if self.verdict == "compensate":
             head += (
-                f", gain {self.gain:.3f}, correction {self.correction:+.4g}"
-                f" ± {self.u_correction:.2g} mm"
+                f", gain {self.gain:.3f}, correction {self.drawn_correction * 1e3:+.2f}"
+                f" ± {abs(self.scale) * self.u_correction * 1e3:.2f} µm {self.coordinate}"
             )
         if self.verdict == "measure more" and self.more_points is not None:
             head += f", {self.more_points} more probe points"
@@ -128,17 +165,7 @@ class Decision:
         return "\n".join(lines)
 
 
-# --------------------------------------------------------------------------- verdict
-
-
-def _clear(core: _Core) -> str | None:
-    """The verdict when the evidence is clear, else None ('measure more')."""
-    b = core.bayes
-    if core.justified:
-        if b.blocked:
-            return "do not compensate"
-        return "compensate" if core.after.state == "conforms" else None
-    return "do not compensate" if core.before.state == "conforms" else None
+# --------------------------------------------------------------------------- more points
 
 
 def _scaled(m0, s0, samples, u_sys, n, n_new):
@@ -155,11 +182,11 @@ def _more_points(m0, s0, samples, u_sys, n, tol, st, k, band, max_corr, t, dof) 
     prev = n
     for n_new in cands:
         s_new, smp = _scaled(m0, s0, samples, u_sys, n, n_new)
-        if _clear(_evaluate(m0, s_new, smp, tol, st, k, band, max_corr, t, dof)) is not None:
+        if clear_verdict(_evaluate(m0, s_new, smp, tol, st, k, band, max_corr, t, dof)):
             for n_try in range(prev + 1, n_new):  # the smallest decisive count
                 s_try, smp = _scaled(m0, s0, samples, u_sys, n, n_try)
                 core = _evaluate(m0, s_try, smp, tol, st, k, band, max_corr, t, dof)
-                if _clear(core) is not None:
+                if clear_verdict(core) is not None:
                     return n_try - n
             return n_new - n
         prev = n_new
@@ -180,6 +207,8 @@ def decide(
     run_index: int = 1,
     feature: str | None = None,
     dof: float = math.inf,
+    coordinate: str = "normal",
+    scale: float = 1.0,
 ) -> Decision:
     """Decide whether to compensate one feature.
 
@@ -195,6 +224,9 @@ def decide(
     - `feature`: id carried into the result and error messages.
     - `dof`: (effective) degrees of freedom of `sd` (`inf`: normal). Finite: the
       deviation is `mean + sd * t_dof` (see the module doc); not with `samples`.
+    - `coordinate`, `scale`: the coordinate the tolerance is drawn on and the drawn
+      deviation per unit of normal deviation (`geometry.drawn_scale`); they change
+      only how the result is stated (reasons, `drawn_*`), never the verdict.
 
     **Returns:** a [`Decision`][] with the verdict, the gain and correction, every
     action's expected loss, significance, conformance before and after, and reasons.
@@ -206,31 +238,22 @@ def decide(
     )
     band, k, max_corr = _scales(st, hi - lo)
     core = _evaluate(m0, s0, smp, (lo, hi), st, k, band, max_corr, run_index, dof)
-    best = min(core.actions, key=lambda a: a.expected_loss)
-    reasons = _evidence(core, best, m0, s0, dof, band, st)
-    verdict = _clear(core)
     more = None
-    if verdict is None:
-        if n_points is not None:
-            more = _more_points(
-                m0, s0, smp, u_systematic, n_points, (lo, hi), st, k, band, max_corr, run_index,
-                dof,
-            )  # fmt: skip
-        verdict, why = _undecided(core, n_points, more, st)
-        reasons.append(why)
-    blocked = core.bayes.blocked and core.justified
-    if blocked:
-        verdict = "do not compensate"
-        reasons.append(_blocked_reason(core.bayes, max_corr))
-    gain, corr, why = _action_taken(verdict, core, m0, blocked)
-    if why is not None:
-        reasons.append(why)
+    if clear_verdict(core) is None and n_points is not None:
+        more = _more_points(
+            m0, s0, smp, u_systematic, n_points, (lo, hi), st, k, band, max_corr, run_index,
+            dof,
+        )  # fmt: skip
+    words = _Words(coordinate, float(scale))
+    out = conclude(
+        core, band=band, max_corr=max_corr, st=st, n_points=n_points, more=more, w=words, dof=dof
+    )
     return Decision(
         feature=feature,
-        verdict=verdict,
-        gain=float(gain),
-        correction=float(corr),
-        u_correction=float(abs(gain) * s0),
+        verdict=out.verdict,
+        gain=float(out.gain),
+        correction=float(out.correction),
+        u_correction=float(abs(out.gain) * s0),
         estimate=m0,
         u_estimate=s0,
         posterior_mean=core.post.m,
@@ -238,16 +261,18 @@ def decide(
         null_band=float(band),
         p_exceed=core.p_exceed,
         significant=core.significant,
-        best_action=best.name,
+        best_action=min(core.actions, key=lambda a: a.expected_loss).name,
         actions=core.actions,
         conformance_before=core.before,
         conformance_after=core.after,
         tolerance=(lo, hi),
-        blocked=blocked,
+        blocked=out.blocked,
         n_points=n_points,
         more_points=more,
-        reasons=tuple(reasons),
+        reasons=out.reasons,
         dof=dof,
+        coordinate=coordinate,
+        scale=float(scale),
     )
 
 
@@ -314,92 +339,6 @@ def _scales(st: DecisionSettings, width: float) -> tuple[float, float, float]:
         k = 1.0 / (width / 2) ** 2  # no costs given at all: fall back to unit Taguchi loss
     max_corr = width if st.max_correction is None else st.max_correction
     return band, k, max_corr
-
-
-def _evidence(core: _Core, best: ActionLoss, m0, s0, dof, band, st) -> list[str]:
-    """The first reasons of a decision: estimate, significance, losses, conformance."""
-    reasons = [
-        f"estimate {m0:+.4g} mm, u = {s0:.2g} mm"
-        + (f" ({dof:.0f} effective degrees of freedom)" if math.isfinite(dof) else "")
-        + (
-            f" (posterior with prior sd {st.prior_sd:g}: {core.post.m:+.4g} ± {core.post.s:.2g})"
-            if st.prior_sd is not None
-            else ""
-        ),
-        f"P(|deviation| > null band {band:.3g} mm) = {core.p_exceed:.3f} "
-        f"({'>=' if core.significant else '<'} {st.p_significant:g}: "
-        f"{'significant' if core.significant else 'not significant'})",
-    ]
-    reasons.append(
-        "expected loss: "
-        + ", ".join(f"{a.name} {a.expected_loss:.4g}" for a in core.actions)
-        + f" (lowest: {best.name})"
-    )
-    reasons.append(
-        f"conformance as measured: {core.before.state}, p_c = {core.before.p_conform:.3f}"
-    )
-    return reasons
-
-
-def _undecided(core: _Core, n_points, more, st) -> tuple[Verdict, str]:
-    """Verdict and reason when the evidence is not clear (`more`: extra points or None)."""
-    target = core.after if core.justified else core.before
-    lo_a, hi_a = target.acceptance
-    too_large = (
-        f"uncertainty too large against the tolerance: U = {target.expanded:.2g} mm, "
-        f"acceptance zone [{lo_a:+.3g}, {hi_a:+.3g}] mm does not contain "
-        f"{target.value:+.3g} mm; "
-    )
-    if n_points is None:
-        return "measure more", too_large + "give n_points to estimate how many more are needed"
-    if more is not None:
-        return "measure more", too_large + (
-            f"about {more} more probe points "
-            f"({n_points} -> {n_points + more}, u ~ 1/sqrt(n)) would decide"
-        )
-    adjust = core.justified and not core.bayes.blocked
-    return "compensate" if adjust else "do not compensate", (
-        f"even {st.max_points_factor:g}x the probe points would not decide "
-        f"(the estimate sits on a threshold or u_systematic dominates): "
-        f"taking the lowest-loss action ({'adjust' if core.justified else 'none'})"
-    )
-
-
-def _blocked_reason(bayes: ActionLoss, max_corr: float) -> str:
-    return (
-        f"blocked: correction {bayes.correction:+.4g} mm exceeds max_correction {max_corr:.3g} mm;"
-        " investigate (wrong tool, offset or setup) before adjusting"
-    )
-
-
-def _action_taken(verdict, core: _Core, m0, blocked) -> tuple[float, float, str | None]:
-    """Gain and correction applied under `verdict`, and the closing reason (or None)."""
-    b = core.bayes
-    if verdict == "compensate":
-        gain, corr = b.gain, b.correction
-        if gain == 0.0:  # compensate was forced by the fallback, use full gain
-            gain, corr = 1.0, -m0
-        return (
-            gain,
-            corr,
-            (
-                f"compensate with gain {gain:.3f}: predicted after {core.after.value:+.3g} mm, "
-                f"{core.after.state}, p_c = {core.after.p_conform:.3f}"
-            ),
-        )
-    if verdict == "do not compensate" and not blocked:
-        if b.correction == 0.0:
-            return 0.0, 0.0, "do not compensate: adjusting does not lower the expected loss"
-        if not core.significant:
-            return (
-                0.0,
-                0.0,
-                (
-                    "do not compensate: the deviation is not significant (without a prior, "
-                    "significance is required)"
-                ),
-            )
-    return 0.0, 0.0, None
 
 
 _N_T = 2000

@@ -38,6 +38,7 @@ from ..geometry import (
     intersect_line_circle,
     intersect_line_line,
 )
+from ..io import rows_to_dataframe
 
 __all__ = ["compensated_deviations", "adjusted_geometry", "AdjustedPath", "adjusted_path"]
 
@@ -201,6 +202,33 @@ class AdjustedPath:
     @property
     def max_shift(self) -> float:
         return float(np.max(np.linalg.norm(self.shift, axis=1)))
+
+    def rows(self) -> list[dict]:
+        """One row per vertex (toolpath.csv): the features it joins, the junction, its
+        nominal and adjusted position and move (part frame, mm, X as a radius)."""
+        ids, junctions = self.nominal.ids, self.nominal.junctions
+        rows = []
+        for j, (v, nv) in enumerate(zip(self.vertices, self.nominal.vertices, strict=True)):
+            before = ids[j - 1] if j > 0 else ""
+            after = ids[j] if j < len(ids) else ""
+            rows.append(
+                {
+                    "vertex": j,
+                    "between": f"{before}|{after}".strip("|"),
+                    "junction": junctions[j - 1] if 0 < j < len(ids) else "end",
+                    "nominal_x_radius_mm": float(nv[0]),
+                    "nominal_z_mm": float(nv[1]),
+                    "x_radius_mm": float(v[0]),
+                    "z_mm": float(v[1]),
+                    "dx_radius_mm": float(v[0] - nv[0]),
+                    "dz_mm": float(v[1] - nv[1]),
+                }
+            )
+        return rows
+
+    def to_dataframe(self):
+        """The vertices as a `pandas.DataFrame`: `rows()`, the columns of toolpath.csv."""
+        return rows_to_dataframe(self.rows())
 
     def __repr__(self) -> str:
         return (

@@ -116,7 +116,13 @@ class AxisCorrection:
 
 @dataclass(frozen=True)
 class ToolOffsetUpdate:
-    """A wear-offset update for one tool; `x`, `z`, `r` are [`AxisCorrection`][]s."""
+    """A wear-offset update for one tool; `x`, `z`, `r` are [`AxisCorrection`][]s.
+
+    `tool` is the tool (turret station; LinuxCNC's tool-table entry), `offset` the
+    wear offset number the controller keeps its wear in (Fanuc `G10 P<offset>`; the
+    `oo` of a `Tttoo` word; the tool number when not given), `source` where the tool
+    number came from (e.g. the program's T word).
+    """
 
     tool: int
     x_mode: str
@@ -126,6 +132,12 @@ class ToolOffsetUpdate:
     blocked: bool
     reasons: tuple[str, ...]
     settings: OffsetSettings
+    offset: int | None = None
+    source: str = ""
+
+    def __post_init__(self):
+        if self.offset is None:
+            object.__setattr__(self, "offset", self.tool)
 
     @property
     def axes(self) -> tuple[AxisCorrection, AxisCorrection, AxisCorrection]:
@@ -138,7 +150,8 @@ class ToolOffsetUpdate:
 
     def __repr__(self) -> str:
         state = "BLOCKED" if self.blocked else ("update" if self.any_update else "no change")
-        lines = [f"ToolOffsetUpdate(T{self.tool}, {state}, X as {self.x_mode})"]
+        off = "" if self.offset == self.tool else f", wear offset {self.offset}"
+        lines = [f"ToolOffsetUpdate(T{self.tool}{off}, {state}, X as {self.x_mode})"]
         lines += [f"  {a!r}" for a in self.axes if a.error is not None]
         lines += [f"  - {r}" for r in self.reasons]
         return "\n".join(lines)
@@ -198,12 +211,16 @@ def tool_offset_update(
     settings: OffsetSettings | None = None,
     x_mode: XMode = "diameter",
     raise_on_block: bool = False,
+    offset: int | None = None,
+    source: str = "",
 ) -> ToolOffsetUpdate:
     """Wear-offset corrections for `tool` from measured mean errors (see module docstring).
 
     **Arguments:**
 
-    - `tool`: tool (LinuxCNC) or offset (Fanuc) number, >= 1.
+    - `tool`: tool number (turret station; LinuxCNC tool-table entry), >= 1.
+    - `offset`: wear offset number (Fanuc `G10 P`), >= 1; default `tool`.
+    - `source`: where the tool number came from (written with the update).
     - `x_error`, `u_x`: mean X error and its standard uncertainty (mm), a diameter error
       when `x_mode="diameter"`, radial when `"radius"`.
     - `z_error`, `u_z`: mean Z error (mm); `nose_radius_error`, `u_r`: effective minus
@@ -216,6 +233,9 @@ def tool_offset_update(
     st = settings if settings is not None else OffsetSettings()
     if isinstance(tool, bool) or not isinstance(tool, int) or tool < 1:
         raise InputError(f"tool must be an integer >= 1, got {tool!r}", value=tool)
+    offset = tool if offset is None else offset
+    if isinstance(offset, bool) or not isinstance(offset, int) or offset < 1:
+        raise InputError(f"offset must be an integer >= 1, got {offset!r}", value=offset)
     if x_mode not in ("diameter", "radius"):
         raise InputError(f"x_mode must be 'diameter' or 'radius', got {x_mode!r}", value=x_mode)
     if all(e is None for e in (x_error, z_error, nose_radius_error)):
@@ -254,4 +274,6 @@ def tool_offset_update(
         blocked=bool(blocked_axes),
         reasons=tuple(reasons),
         settings=st,
+        offset=offset,
+        source=str(source),
     )

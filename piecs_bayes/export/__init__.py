@@ -25,6 +25,7 @@ from ._linuxcnc import parse_linuxcnc_comp as parse_linuxcnc_comp
 from ._linuxcnc import read_linuxcnc_comp as read_linuxcnc_comp
 from ._linuxcnc import validate_linuxcnc_comp as validate_linuxcnc_comp
 from ._linuxcnc import write_linuxcnc_comp as write_linuxcnc_comp
+from ._machine_files import ALTERNATIVE as ALTERNATIVE
 from ._machine_files import CompensationOutputs as CompensationOutputs
 from ._machine_files import write_compensation_outputs as write_compensation_outputs
 from ._offsets import g10_fanuc as g10_fanuc
@@ -36,6 +37,10 @@ from ._report_html import report_html as report_html
 from ._report_html import summary_html as summary_html
 from ._report_pdf import report_pdf as report_pdf
 from ._report_summary import summary_rows as summary_rows
+from ._routes import ROUTE_TITLES as ROUTE_TITLES
+from ._routes import MachineFiles as MachineFiles
+from ._routes import route_file_names as route_file_names
+from ._routes import write_machine_files as write_machine_files
 from ._tables import band_csv as band_csv
 from ._tables import bounds_csv as bounds_csv
 from ._tables import bounds_json as bounds_json

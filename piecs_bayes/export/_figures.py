@@ -12,7 +12,7 @@ as on the drawing; lengths of the part in mm, deviations in µm, rotations in
 exaggerated by a factor stated in its title.
 
 This module holds what the figures share (rcParams, units, layout helpers); the
-figures themselves are in `_figures_*.py` by topic and `_text_pages.py`.
+figures themselves are in `_figures_*.py` by topic.
 """
 
 from __future__ import annotations
@@ -80,9 +80,9 @@ def _contour_s(profile, grid):
     return starts[grid.feature] + grid.t * lengths[grid.feature], starts
 
 
-def _label_features(ax, profile, starts):
-    """Feature boundaries as dotted lines and the ids above the axes (staggered
-    where neighbours are short)."""
+def _label_features(ax, profile, starts, names=None, *, labels=True):
+    """Feature boundaries as dotted lines and the ids (or `names`) above the axes
+    (staggered where neighbours are short; none with `labels=False`)."""
     from matplotlib.transforms import blended_transform_factory
 
     tr = blended_transform_factory(ax.transData, ax.transAxes)
@@ -92,10 +92,12 @@ def _label_features(ax, profile, starts):
         ax.axvline(starts[k], color="0.5", lw=0.6, ls=":")
         short = (starts[k + 1] - starts[k]) / total < 0.1
         raised = short and not raised
+        if not labels:
+            continue
         ax.text(
             (starts[k] + starts[k + 1]) / 2,
             1.055 if raised else 1.01,
-            f.id,
+            f.id if names is None else names[k],
             transform=tr,
             ha="center",
             va="bottom",

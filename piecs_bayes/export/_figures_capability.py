@@ -7,14 +7,17 @@ import math
 
 import numpy as np
 
+from ..geometry import drawn_scale
 from ._figures import _figure, _grid
 
 __all__ = ["capability_chart_figure", "capability_index_figure"]
 
 
-def capability_chart_figure(cap):
+def capability_chart_figure(cap, profile=None):
     """Individuals charts of every feature's characteristic over the run, with
-    the control limits, the tolerance, flagged parts and the most likely step."""
+    the control limits, the tolerance, flagged parts and the most likely step; with
+    the study's `profile`, every value as drawn (on the diameter for a diameter, on Z
+    for a face: `geometry.drawn_scale`), else the normal deviation."""
     feats = list(cap.features.values())
     nrows, ncols = _grid(len(feats), 2)
     fig = _figure((11.0, 2.3 * nrows + 0.8))
@@ -26,17 +29,18 @@ def capability_chart_figure(cap):
         fc = feats[k]
         s = fc.stability
         x = np.arange(1, len(fc.values) + 1)
-        v = np.asarray(fc.values) * 1e3
+        g = 1e3 * (1.0 if profile is None else drawn_scale(profile[fc.feature]))
+        v = np.asarray(fc.values) * g
         ax.plot(x, v, "-o", ms=3, lw=0.8, color="C0")
         flagged = sorted(set(s.beyond_limits) | set(s.run_points) | set(s.trend_points))
         if flagged:
             ax.plot(x[flagged], v[flagged], "o", ms=5, mfc="none", mec="C3", mew=1.4)
-        ax.axhline(s.center * 1e3, color="k", lw=0.8)
-        ax.axhline(s.ucl * 1e3, color="C1", lw=0.9, ls="--")
-        ax.axhline(s.lcl * 1e3, color="C1", lw=0.9, ls="--")
+        ax.axhline(s.center * g, color="k", lw=0.8)
+        ax.axhline(s.ucl * g, color="C1", lw=0.9, ls="--")
+        ax.axhline(s.lcl * g, color="C1", lw=0.9, ls="--")
         lo, hi = fc.tolerance
-        ax.axhline(lo * 1e3, color="C3", lw=1.0)
-        ax.axhline(hi * 1e3, color="C3", lw=1.0)
+        ax.axhline(lo * g, color="C3", lw=1.0)
+        ax.axhline(hi * g, color="C3", lw=1.0)
         if fc.step_part:
             ax.axvline(s.step_index + 0.5, color="C4", lw=1.2, ls=":")
             ax.annotate(
@@ -50,10 +54,13 @@ def capability_chart_figure(cap):
             )
         c = fc.capability
         ax.set_title(f"{fc.feature} ({fc.characteristic}): Cpk {c.cpk:.2f}, Ppk {c.ppk:.2f}")
-        ax.set_ylabel("deviation (µm)", fontsize=8)
+        on = "normal" if profile is None else profile[fc.feature].tolerance_on
+        ax.set_ylabel(f"deviation on {on} (µm)", fontsize=8)
         ax.set_xlabel("part (production order)", fontsize=8)
     fig.suptitle(
-        "Individuals charts: normal deviation per part; dashed: 3σ control limits "
+        "Individuals charts: deviation per part"
+        + (" as drawn" if profile is not None else " along the normal")
+        + "; dashed: 3σ control limits "
         "(moving range); red: tolerance; circles: flagged parts"
     )
     return fig

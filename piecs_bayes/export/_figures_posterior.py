@@ -47,7 +47,8 @@ def trace_figure(posterior, *, max_points: int = 600, walkers_per_ensemble: int 
     fig.suptitle(
         f"Posterior traces after burn-in ({posterior.burn} steps): walker mean per ensemble "
         f"(thick) and {walkers_per_ensemble} walkers each (thin); {n_e} ensembles × "
-        f"{posterior.nwalkers} walkers"
+        f"{posterior.nwalkers} walkers",
+        fontsize=10,
     )
     return fig
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry import drawn_limits, drawn_scale
 from ..uncertainty import normal_deviation_at
 from ._figures import _contour_s, _figure, _label_features, _nice
 
@@ -102,9 +103,10 @@ def _draw_band(ax, unc, i, fac, once):
 
 
 def profile_figure(res, exaggeration: float | None = None):
-    """The profile as drawn, the measured points and fitted features, and the
-    adjusted tool path with its simultaneous 95 % band, deviations exaggerated."""
-    fig = _figure((10.5, 5.0))
+    """The profile as drawn (the vertical axis labelled with diameters, as on the
+    drawing), each feature's tolerance zone, the measured points and fitted features,
+    and the adjusted tool path with its simultaneous 95 % band, deviations exaggerated."""
+    fig = _figure((10.5, 4.4))
     ax = fig.add_subplot()
     prof = res.study.profile
     fac = exaggeration or auto_exaggeration(res)
@@ -118,6 +120,10 @@ def profile_figure(res, exaggeration: float | None = None):
         q = np.asarray(f.point_at(t))
         n = np.asarray(f.outward_normal(q))
         ax.plot(q[:, 1], q[:, 0], color="k", lw=1.4, label=once("nominal", "nominal profile"))
+        lo, hi = (q + fac * v * n for v in f.tolerance)
+        zone = np.vstack([lo, hi[::-1]])
+        ax.fill(zone[:, 1], zone[:, 0], color="C3", alpha=0.13, lw=0,
+                label=once("tol", "tolerance zone (exagg.)"))  # fmt: skip
         mid = q[len(q) // 2] + n[len(q) // 2] * label_gap
         ax.annotate(
             f.id, (mid[1], mid[0]), fontsize=8, ha="center", va="center", color="0.25", zorder=5
@@ -134,9 +140,12 @@ def profile_figure(res, exaggeration: float | None = None):
     ax.plot(
         [z_all.min(), z_all.max()], [0.0, 0.0], color="0.4", lw=0.8, ls="-.", label="spindle axis"
     )
+    from matplotlib.ticker import FuncFormatter
+
     ax.set_aspect("equal", adjustable="datalim")
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{2 * v:g}"))
     ax.set_xlabel("Z (mm, along the spindle axis)")
-    ax.set_ylabel("X (mm, radius)")
+    ax.set_ylabel("Ø (mm; half section drawn true to scale)")
     ax.set_title(
         f"Profile, measured part and adjusted tool path (part frame); deviations exaggerated "
         f"× {fac:g}"
@@ -145,72 +154,90 @@ def profile_figure(res, exaggeration: float | None = None):
     return fig
 
 
-def offset_figure(res):
-    """Normal offset of the adjusted tool path from nominal along the contour, with
-    its pointwise and simultaneous 95 % bands (linearised and Monte Carlo)."""
-    fig = _figure((10.5, 4.6))
-    ax = fig.add_subplot()
+_SIGN = {"diameter": "Ø", "radius": "R", "length": "Z", "normal": "normal"}
+
+
+def _part_panel(ax, res, lin, s, k):
+    """The measured part along the contour, as drawn: fitted deviation, the decision's
+    point with ± U, and the tolerance limits."""
     prof = res.study.profile
-    lin = res.uncertainty["linearised"]
-    mc = res.uncertainty.get("monte_carlo")
-    s, starts = _contour_s(prof, lin.grid)
-    um = 1e3
-    b = lin.bands
+    dec = {} if res.decisions is None else {d.feature: d for d in res.decisions.decisions}
+    est = {} if res.decisions is None else dict(zip(dec, res.decisions.estimates, strict=True))
+    lengths = np.array([f.length for f in prof.features])
+    starts = np.concatenate([[0.0], np.cumsum(lengths)])
+    marked = False
     for i, f in enumerate(prof.features):
         sel = lin.grid.feature == i
+        lo, hi = (1e3 * v for v in drawn_limits(f))
         lab = i == 0
-        ax.fill_between(
-            s[sel],
-            um * b.simultaneous_lower[sel],
-            um * b.simultaneous_upper[sel],
-            color="C2",
-            alpha=0.2,
-            lw=0,
-            label="simultaneous 95 % (GUM)" if lab else None,
-        )
-        ax.fill_between(
-            s[sel],
-            um * b.pointwise_lower[sel],
-            um * b.pointwise_upper[sel],
-            color="C2",
-            alpha=0.35,
-            lw=0,
-            label="pointwise 95 % (GUM)" if lab else None,
-        )
-        ax.plot(
-            s[sel], um * lin.offset[sel], color="C2", lw=1.5, label="adjusted path" if lab else None
-        )
+        ax.plot([starts[i], starts[i + 1]], [lo, lo], color="C3", lw=1.2,
+                label="tolerance limits" if lab else None)  # fmt: skip
+        ax.plot([starts[i], starts[i + 1]], [hi, hi], color="C3", lw=1.2)
         ff = res.fit.fits.get(f.id)
         if ff is not None:
             d = np.asarray(normal_deviation_at(f, ff.values, lin.grid.points[sel]))
-            ax.plot(
-                s[sel],
-                um * d,
-                color="0.35",
-                lw=1.0,
-                ls="--",
-                label="fitted deviation of the part" if lab else None,
-            )
+            ax.plot(s[sel], 1e3 * k[i] * d, color="C0", lw=1.3,
+                    label="fitted deviation of the part" if lab else None)  # fmt: skip
+        if f.id in dec and est.get(f.id) is not None:
+            dd, c = dec[f.id], est[f.id]
+            ax.errorbar(
+                starts[i] + c.t * lengths[i], 1e3 * dd.drawn_estimate,
+                yerr=1e3 * dd.drawn_expanded, fmt="o", ms=4, color="k", capsize=3, lw=1.0,
+                label=None if marked else "decision point, ± U (95 %)",
+            )  # fmt: skip
+            marked = True
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_ylabel("part deviation as drawn (µm)")
+    ax.set_title("The measured part: deviation from nominal as drawn, with the tolerance", pad=24)
+
+
+def _path_panel(ax, res, lin, s, k):
+    """The adjusted tool path's change from nominal along the contour, as drawn."""
+    mc = res.uncertainty.get("monte_carlo")
+    b = lin.bands
+    for i, _ in enumerate(res.study.profile.features):
+        sel = lin.grid.feature == i
+        lab, ki = i == 0, 1e3 * k[i]
+        pair = sorted((ki * b.simultaneous_lower[sel], ki * b.simultaneous_upper[sel]),
+                      key=lambda v: float(np.mean(v)))  # fmt: skip
+        ax.fill_between(s[sel], *pair, color="C2", alpha=0.2, lw=0,
+                        label="simultaneous 95 % (linearised)" if lab else None)  # fmt: skip
+        pair = sorted((ki * b.pointwise_lower[sel], ki * b.pointwise_upper[sel]),
+                      key=lambda v: float(np.mean(v)))  # fmt: skip
+        ax.fill_between(s[sel], *pair, color="C2", alpha=0.35, lw=0,
+                        label="pointwise 95 % (linearised)" if lab else None)  # fmt: skip
+        ax.plot(s[sel], ki * lin.offset[sel], color="C2", lw=1.5,
+                label="adjusted tool path" if lab else None)  # fmt: skip
         if mc is not None:
             mb = mc.bands
-            ax.plot(
-                s[sel],
-                um * mb.simultaneous_lower[sel],
-                color="C4",
-                lw=0.9,
-                ls=":",
-                label="simultaneous 95 % (Monte Carlo)" if lab else None,
-            )
-            ax.plot(s[sel], um * mb.simultaneous_upper[sel], color="C4", lw=0.9, ls=":")
-    _label_features(ax, prof, starts)
+            ax.plot(s[sel], ki * mb.simultaneous_lower[sel], color="C4", lw=0.9, ls=":",
+                    label="simultaneous 95 % (Monte Carlo)" if lab else None)  # fmt: skip
+            ax.plot(s[sel], ki * mb.simultaneous_upper[sel], color="C4", lw=0.9, ls=":")
     ax.axhline(0.0, color="k", lw=0.8)
-    ax.set_xlim(starts[0], starts[-1])
+    ax.set_ylabel("tool-path change as drawn (µm)")
     ax.set_xlabel("position along the nominal contour from its start (mm)")
-    ax.set_ylabel("normal offset from nominal (µm, + outward)")
-    title = (
-        f"Adjusted tool path: offset with 95 % bands (pointwise k = "
+    ax.set_title(
+        f"The adjusted tool path with 95 % bands (pointwise k = "
         f"{float(np.median(b.crit_pointwise)):.2f}, simultaneous k = {b.crit_simultaneous:.2f})"
     )
-    ax.set_title(title, pad=26)
-    fig.legend(loc="outside lower center", ncol=5)
+
+
+def offset_figure(res):
+    """Along the nominal contour, as drawn (on the diameter for diameters, on Z for
+    faces, along the normal for tapers and arcs): the measured part's fitted deviation
+    with the tolerance limits and the decision points (± U), and the adjusted tool
+    path's change with its pointwise and simultaneous 95 % bands."""
+    fig = _figure((10.5, 6.4))
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    prof = res.study.profile
+    lin = res.uncertainty["linearised"]
+    s, starts = _contour_s(prof, lin.grid)
+    k = [drawn_scale(f) for f in prof.features]
+    _part_panel(top, res, lin, s, k)
+    _path_panel(bottom, res, lin, s, k)
+    names = [f"{f.id} ({_SIGN.get(f.tolerance_on, f.tolerance_on)})" for f in prof.features]
+    for ax in (top, bottom):
+        _label_features(ax, prof, starts, names, labels=ax is top)
+        ax.set_xlim(starts[0], starts[-1])
+        ax.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=7.5, framealpha=0.9)
     return fig

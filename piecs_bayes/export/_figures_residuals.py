@@ -51,14 +51,17 @@ def residuals_figure(res):
             yj = math.copysign(0.85 * lim, r[j]) if clipped else r[j]
             marker = ("^" if r[j] > 0 else "v") if clipped else "x"
             ax.plot(x[j], yj, marker, ms=8, mew=2, color="C3")
+            right = x[j] > 0.5 * (float(np.min(x)) + float(np.max(x)))
             ax.annotate(
-                f"line {int(ff.lines[j])}: {r[j]:+.1f} µm" + (" (off scale)" if clipped else ""),
+                f"line {int(ff.lines[j])}\n{r[j]:+.1f} µm" + (" (off scale)" if clipped else ""),
                 (x[j], yj),
-                xytext=(0, -12 if r[j] > 0 else 6),
+                xytext=(-7 if right else 7, -4 if r[j] > 0 else 4),
                 textcoords="offset points",
-                ha="right" if x[j] > 0.6 * ff.feature.length else "left",
-                fontsize=7.5,
+                ha="right" if right else "left",
+                va="top" if r[j] > 0 else "bottom",
+                fontsize=7,
                 color="C3",
+                zorder=6,
             )
         ax.set_ylim(-lim, lim)
         s_txt = (

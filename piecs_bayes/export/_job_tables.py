@@ -33,8 +33,9 @@ def decisions_csv(table) -> str:
     return to_csv(table.rows())
 
 
-def decisions_json(table) -> str:
-    """decisions.json (schema `piecs_bayes.decisions`, docs/formats.md)."""
+def decisions_json(table, *, apply: Mapping | None = None) -> str:
+    """decisions.json (schema `piecs_bayes.decisions`, docs/formats.md); `apply`, the
+    route to the machine with its files (`MachineFiles.as_dict()`), when given."""
     feats = []
     for d, c in zip(table.decisions, table.estimates, strict=True):
         row = {k: v for k, v in d.as_row().items() if k != "reasons"}
@@ -57,32 +58,39 @@ def decisions_json(table) -> str:
         "features": [json_safe(f) for f in feats],
         "unmeasured": list(table.unmeasured),
     }
+    if apply is not None:
+        doc["apply"] = json_safe(dict(apply))
     return json.dumps(doc, indent=2) + "\n"
 
 
 def decisions_text(table) -> str:
-    """A fixed-width verdict table (um), then the reasons per feature."""
+    """A fixed-width verdict table (µm, as drawn), then the reasons per feature."""
     head = (
-        f"{'feature':<11}{'at':<7}{'dev um':>8}{'u um':>7}{'tol um':>13}"
-        f"{'P(>band)':>9}  {'conformance':<17}{'verdict':<18}{'gain':>5}{'corr um':>9}"
+        f"{'feature':<11}{'on':<9}{'at':<7}{'dev µm':>8}{'U µm':>7}{'tol µm':>13}"
+        f"{'band µm':>8}{'P(>band)':>9}  {'conformance':<17}{'verdict':<18}{'gain':>5}"
+        f"{'corr µm':>9}"
     )
     lines = [
-        f"Decisions for {table.study!r}, part {table.part or '-'} ({table.method}; deviation "
-        f"along the outward normal at the {table.characteristic} point; u = standard "
-        "uncertainty)",
+        f"Decisions for {table.study!r}, part {table.part or '-'} ({table.method}). Values "
+        "as drawn: on the diameter for diameters, on Z for faces, along the normal for "
+        f"tapers and arcs, at the {table.characteristic} point of each feature; U: expanded "
+        "uncertainty (95 %); band: the null band, deviations inside it are not worth "
+        "correcting; P(>band): probability the deviation is beyond it; gain: applied; "
+        "corr: the correction of the finish cut.",
         head,
         "-" * len(head),
     ]
     for d, c in zip(table.decisions, table.estimates, strict=True):
-        lo, hi = d.tolerance
+        lo, hi = d.drawn_tolerance
         verdict = d.verdict.upper() if d.verdict == "compensate" else d.verdict
         if d.verdict == "measure more" and d.more_points is not None:
             verdict += f" +{d.more_points}"
         lines.append(
-            f"{d.feature:<11}{(c.at if c else '-'):<7}{d.estimate * 1e3:>+8.2f}"
-            f"{d.u_estimate * 1e3:>7.2f}{f'[{lo * 1e3:+g},{hi * 1e3:+g}]':>13}"
+            f"{d.feature:<11}{d.coordinate:<9}{(c.at if c else '-'):<7}"
+            f"{d.drawn_estimate * 1e3:>+8.2f}{d.drawn_expanded * 1e3:>7.2f}"
+            f"{f'[{lo * 1e3:+g},{hi * 1e3:+g}]':>13}{d.drawn_null_band * 1e3:>8.2f}"
             f"{d.p_exceed:>9.3f}  {d.conformance_before.state:<17}{verdict:<18}"
-            f"{d.gain:>5.2f}{d.correction * 1e3:>+9.2f}"
+            f"{d.gain:>5.2f}{d.drawn_correction * 1e3:>+9.2f}"
         )
     if table.unmeasured:
         lines.append(f"not measured (no decision): {', '.join(table.unmeasured)}")

@@ -17,6 +17,12 @@ by `usrmotLoadComp` (src/emc/motion/usrmotintf.cc) and stored by `EMCMOT_SET_JOI
 - at most 256 entries (`EMCMOT_COMP_SIZE`), `nominal` strictly increasing: an entry
   that breaks either rule is dropped with an error message, the others are kept.
 
+So the only place for notes is after the last entry: a block of `#` lines there
+ends the reading and loses nothing. The writer puts its notes there (`notes=True`):
+the table's range, that LinuxCNC holds the end values outside it, and that the
+table acts on every move of the joint, probing moves included. The reader accepts
+such a trailing block; anything else after the entries is a problem.
+
 A correction $c$ is therefore written as trim $c$ (type 1) or as
 `forward = nominal - c` (type 0). The writer refuses what this cannot express
 (another axis' position, NaN, more than 256 rows after merging rows that share a
@@ -29,6 +35,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -163,7 +170,7 @@ def _read_entries(chunks: list[str], problems: list[str]) -> list[tuple[int, lis
         count, vals, end = _sscanf3(buf)
         if count != 3:
             rest = [c for c in chunks[idx:] if c.strip(_C_SPACE)]
-            if rest:
+            if rest and not all(c.lstrip(" \t").startswith("#") for c in rest):
                 what = buf.rstrip("\r\n")
                 problems.append(
                     f"line {lineno}: {what[:40]!r} is not three numbers; LinuxCNC stops "
@@ -357,6 +364,26 @@ def _check_read_back(text: str, cols, comp_type: int, q: float, what: str) -> No
         raise AnalysisError(f"{what}: the written table does not read back as intended")
 
 
+def _notes(table: CompensationTable, rows, comp_type: int, decimals: int, units: str, extra):
+    """The trailing `#` lines of a table: what it is, its range and what LinuxCNC does
+    outside it and on which moves (LinuxCNC stops reading at the first of them)."""
+    lo, hi = (f"{rows[i][0]:.{decimals}f}" for i in (0, -1))
+    x = ", X as radius" if table.axis == "x" else ""
+    lines = [
+        f"piecs-bayes: LinuxCNC joint compensation of {table.axis.upper()}, table "
+        f"{table.name!r} (COMP_FILE_TYPE {comp_type}, {units}{x}).",
+        "LinuxCNC stops reading at the first line that is not three numbers:",
+        "these notes are not loaded.",
+        f"Range: nominal {lo} to {hi} {units}. Outside it LinuxCNC holds the end",
+        f"values: the trim at {lo} below it, the trim at {hi} above it.",
+        "It acts on every move of this joint, rapids, cuts and probing moves alike:",
+        "probe points taken with it loaded are shifted by its trim; unload it",
+        "before probing, or allow for it.",
+        *extra,
+    ]
+    return "".join(f"# {line}\n" for line in lines)
+
+
 def linuxcnc_comp_text(
     table: CompensationTable,
     *,
@@ -364,6 +391,7 @@ def linuxcnc_comp_text(
     decimals: int = 6,
     machine_units: str = "mm",
     merge_tolerance: float | None = None,
+    notes: bool | Sequence[str] = False,
 ) -> str:
     """The LinuxCNC joint compensation table of `table` (three numbers per line).
 
@@ -377,6 +405,9 @@ def linuxcnc_comp_text(
     - `merge_tolerance`: rows whose positions are closer than this (machine units;
       default one unit of the last printed digit) are merged into one entry: mean
       position, inverse-variance weighted corrections.
+    - `notes`: append the notes after the last entry (`#` lines: the range, the end
+      values held outside it, every move including probing); a sequence of strings
+      adds those lines too. LinuxCNC stops reading at the first note.
 
     **Returns:** the file text. Raises `AnalysisError` when the format cannot express
     the table (the message says why) and `InputError` for bad arguments.
@@ -409,6 +440,9 @@ def linuxcnc_comp_text(
             "table to fewer positions or merge more (merge_tolerance)"
         )
     text, cols = _comp_lines(rows, comp_type, decimals)
+    if notes is not False:
+        extra = () if notes is True else tuple(str(n) for n in notes)
+        text += _notes(table, rows, comp_type, decimals, machine_units, extra)
     _check_read_back(text, cols, comp_type, q, what)
     return text
 
@@ -421,6 +455,7 @@ def write_linuxcnc_comp(
     decimals: int = 6,
     machine_units: str = "mm",
     merge_tolerance: float | None = None,
+    notes: bool | Sequence[str] = False,
     protect=None,
 ) -> Path:
     """Write [`linuxcnc_comp_text`][] to `path` atomically, then re-read and validate the
@@ -431,6 +466,7 @@ def write_linuxcnc_comp(
         decimals=decimals,
         machine_units=machine_units,
         merge_tolerance=merge_tolerance,
+        notes=notes,
     )
     out = write_text_atomic(path, text, protect=protect)
     read_linuxcnc_comp(out, comp_type=comp_type)

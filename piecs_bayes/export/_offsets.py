@@ -3,6 +3,12 @@
 The update itself ([`tool_offset_update`][piecs_bayes.compensate.tool_offset_update],
 its sign convention and rules) is in `piecs_bayes.compensate`; this module writes it.
 
+**Which number.** The update carries the tool and its wear offset number (from the
+program's T word: `T0202` is tool 2, wear offset 2; see `piecs_bayes.gcode.tool_call`).
+LinuxCNC keeps one tool-table entry per tool: `G10 L1 P<tool>`. Fanuc-style lathes keep
+the wear in numbered offset registers: `G10 P<wear offset>`. A comment line under the
+header says where the tool number came from.
+
 **G-code.** LinuxCNC `G10 L1 P<tool> X Z R` *sets* tool-table values (absolute), so the
 current offsets are needed. The interpreter reads the X word like any other X word: in
 diameter mode (G7) it is a diameter and is halved before it is stored (the table holds
@@ -22,6 +28,7 @@ from dataclasses import asdict
 
 from ..compensate import AxisCorrection, OffsetSettings, ToolOffsets, ToolOffsetUpdate
 from ..errors import AnalysisError, InputError
+from ..gcode import comment_text
 
 __all__ = ["g10_fanuc", "g10_linuxcnc", "offsets_from_json", "offsets_to_json"]
 
@@ -56,7 +63,18 @@ def _u_comment(update: ToolOffsetUpdate, d: int, letters=("X", "Z", "R")) -> str
 
 
 def _header(update: ToolOffsetUpdate, controller: str) -> str:
-    return f"(piecs-bayes {controller} wear update T{update.tool}, X as {update.x_mode}, mm)"
+    """The header comment (the Fanuc one names the T word and the wear offset), and a
+    comment saying where the tool number came from when the update says."""
+    tool, off = update.tool, update.offset
+    if controller == "Fanuc":
+        word = f"T{tool:02d}{off:02d}: " if tool <= 99 and off <= 99 else ""
+        what = f"{word}tool {tool}, wear offset {off}"
+    else:
+        what = f"T{tool}"
+    head = f"(piecs-bayes {controller} wear update {what}, X as {update.x_mode}, mm)"
+    if update.source:
+        head += f"\n({comment_text('tool from ' + update.source)})"
+    return head
 
 
 def g10_linuxcnc(update: ToolOffsetUpdate, *, current: ToolOffsets) -> str:
@@ -67,7 +85,8 @@ def g10_linuxcnc(update: ToolOffsetUpdate, *, current: ToolOffsets) -> str:
     - `update`: from [`tool_offset_update`][]; a blocked update is refused (`AnalysisError`).
     - `current`: the tool's current table values, X in the update's `x_mode`.
 
-    **Returns:** text: a header comment, a comment with the corrections' standard
+    **Returns:** text: a header comment (and one saying where the tool number came
+    from, when the update says), a comment with the corrections' standard
     uncertainties, `G21 G7` (or `G8` for radius), and `G10 L1 P<tool> X.. Z.. R..` with
     only the changed axes; a comment alone when nothing changes.
     """
@@ -96,8 +115,9 @@ def g10_linuxcnc(update: ToolOffsetUpdate, *, current: ToolOffsets) -> str:
 
 def g10_fanuc(update: ToolOffsetUpdate, *, current: ToolOffsets | None = None) -> str:
     """Fanuc-style lathe lines: `G10 P X Z R` (absolute, with `current`) or
-    `G10 P U W C` (incremental, without). P is the wear offset number (the tool
-    number of the update). A blocked update is refused (`AnalysisError`)."""
+    `G10 P U W C` (incremental, without). P is the update's wear offset number
+    (`offset`: the `oo` of the program's `Tttoo`). A blocked update is refused
+    (`AnalysisError`)."""
     _refuse_blocked(update)
     d = update.settings.decimals
     head = _header(update, "Fanuc")
@@ -117,13 +137,13 @@ def g10_fanuc(update: ToolOffsetUpdate, *, current: ToolOffsets | None = None) -
                 continue
             if cur is None:
                 raise InputError(
-                    f"absolute Fanuc G10 needs the current {letter} of offset {update.tool}; "
+                    f"absolute Fanuc G10 needs the current {letter} of offset {update.offset}; "
                     "or pass current=None for the incremental form"
                 )
             _finite(f"current.{letter.lower()}", cur)
             words.append(f"{letter}{_fmt(cur + a.correction, d)}")
         letters = ("X", "Z", "R")
-    return f"{head}\n{_u_comment(update, d, letters)}\nG10 P{update.tool} {' '.join(words)}\n"
+    return f"{head}\n{_u_comment(update, d, letters)}\nG10 P{update.offset} {' '.join(words)}\n"
 
 
 def offsets_to_json(update: ToolOffsetUpdate) -> str:
@@ -133,6 +153,8 @@ def offsets_to_json(update: ToolOffsetUpdate) -> str:
         "version": FORMAT_VERSION,
         "units": "mm",
         "tool": update.tool,
+        "offset": update.offset,
+        "tool_source": update.source,
         "x_mode": update.x_mode,
         "blocked": update.blocked,
         "reasons": list(update.reasons),
@@ -187,6 +209,8 @@ def offsets_from_json(text: str, *, file: str | None = None) -> ToolOffsetUpdate
             blocked=bool(doc["blocked"]),
             reasons=tuple(doc["reasons"]),
             settings=st,
+            offset=int(doc.get("offset", doc["tool"])),
+            source=str(doc.get("tool_source", "")),
         )
     except (KeyError, TypeError, ValueError) as e:
         if isinstance(e, InputError):

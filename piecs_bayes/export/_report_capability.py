@@ -3,20 +3,22 @@ Bayesian Cpk, stability findings and the charts."""
 
 from __future__ import annotations
 
+from ..geometry import drawn_scale
 from ._figures_capability import capability_chart_figure, capability_index_figure
 from ._report_model import _ci, _f, _Fig, _Para, _Pre, _Table
 
 
-def _index_row(fc) -> list[str]:
-    """A feature's classical indices with their confidence intervals."""
+def _index_row(fc, k: float) -> list[str]:
+    """A feature's classical indices with their confidence intervals (lengths as drawn:
+    `k` times the normal deviation)."""
     c = fc.capability
     return [
         fc.feature,
         fc.characteristic,
         str(c.n),
-        _f(c.mean),
-        _f(c.sigma_within, ".2f"),
-        _f(c.sigma_overall, ".2f"),
+        _f(c.mean, "+.2f", 1e3 * k),
+        _f(c.sigma_within, ".2f", 1e3 * abs(k)),
+        _f(c.sigma_overall, ".2f", 1e3 * abs(k)),
         f"{c.cp:.2f} {_ci(c.cp_ci)}",
         f"{c.cpk:.2f} {_ci(c.cpk_ci)}",
         f"{c.pp:.2f} {_ci(c.pp_ci)}",
@@ -45,7 +47,8 @@ def _capability_section(res) -> list:
     if cap is None:
         why = res.unavailable.get("capability", "switched off")
         return [_Para(f"No capability study: {why}", "note")]
-    rows = [_index_row(fc) for fc in cap.features.values()]
+    prof = res.study.profile
+    rows = [_index_row(fc, drawn_scale(prof[fc.feature])) for fc in cap.features.values()]
     rows2 = [_after_row(fc) for fc in cap.features.values()]
     lvl = f"{cap.confidence:.0%}"
     findings = []
@@ -60,14 +63,15 @@ def _capability_section(res) -> list:
     blocks = [
         _Para(
             f"{len(cap.parts)} parts ({cap.parts[0]} … {cap.parts[-1]}), fits {cap.method}; "
-            "values: normal deviation at each feature's characteristic point."
+            "values: the deviation at each feature's characteristic point, as drawn (on the "
+            "diameter for diameters, on Z for faces, along the normal for tapers and arcs)."
         ),
         _Table(
             [
                 "feature",
                 "at",
                 "n",
-                "mean (µm)",
+                "mean (µm, as drawn)",
                 "σ within (µm)",
                 "σ overall (µm)",
                 f"Cp [{lvl} CI]",
@@ -76,8 +80,11 @@ def _capability_section(res) -> list:
                 f"Ppk [{lvl} CI]",
             ],
             rows,
-            caption="Capability indices. Cp, Cpk: within sigma (moving range), chi-square and "
-            "Bissell intervals; Pp, Ppk: overall sigma.",
+            caption="Capability indices: Cp = tolerance width / 6σ (does the spread fit the "
+            "tolerance?), Cpk the same from the nearer limit (centring counts); 1.33 is the "
+            "usual minimum. Cp, Cpk use the within-run σ (from the moving range of successive "
+            "parts), Pp, Ppk the overall σ (drift and steps included). CI: confidence interval "
+            "(chi-square and Bissell).",
         ),
         _Table(
             [
@@ -89,10 +96,11 @@ def _capability_section(res) -> list:
                 f"if stable [{lvl} CI]",
             ],
             rows2,
-            caption="Bayes: i.i.d. normal values, prior 1/σ (overall spread), equal-tailed "
-            "credible interval. 'Cpk after': the mean moved to the target by the compensation, "
-            "overall spread kept; 'if stable': with the within spread (if compensation also "
-            "removed drift and steps).",
+            caption="Bayes: Cpk from the posterior of the mean and the overall σ (independent "
+            "normal values, prior 1/σ) with its equal-tailed credible interval (CrI) and the "
+            "probability that Cpk exceeds the threshold. 'Cpk after': the mean moved to the "
+            "target by the compensation, overall spread kept; 'if stable': with the within "
+            "spread (if compensation also removed drift and steps).",
         ),
     ]
     if findings:
@@ -100,7 +108,7 @@ def _capability_section(res) -> list:
     blocks += [
         _Fig(
             "capability_chart",
-            lambda: capability_chart_figure(cap),
+            lambda: capability_chart_figure(cap, res.study.profile),
             "Individuals charts over the run (production order) with control limits, "
             "tolerance and the most likely step.",
         ),

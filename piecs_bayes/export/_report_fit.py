@@ -12,7 +12,7 @@ from ._figures_budget import budget_figure
 from ._figures_posterior import corner_feature, corner_figure, diagnostics_figure, trace_figure
 from ._figures_profile import auto_exaggeration, offset_figure, profile_figure
 from ._figures_residuals import residuals_figure
-from ._report_model import _f, _Fig, _Para, _Table
+from ._report_model import _f, _Fig, _Para, _Table, micro
 
 
 def _vertex_table(res) -> _Table:
@@ -26,23 +26,24 @@ def _vertex_table(res) -> _Table:
             str(k),
             f"{2 * n[0]:.3f}",
             f"{n[1]:.3f}",
-            _f(v[0] - n[0]),
-            _f(v[1] - n[1]),
-            _f(sd[0], ".2f"),
-            _f(sd[1], ".2f"),
+            _f(v[0] - n[0], "+.1f", 2e3),
+            _f(v[1] - n[1], "+.1f"),
+            _f(sd[0], ".1f", 2e3),
+            _f(sd[1], ".1f"),
         ]
         if mc is not None:
-            row += [_f(mc.vertex_sd[k][0], ".2f"), _f(mc.vertex_sd[k][1], ".2f")]
+            row += [_f(mc.vertex_sd[k][0], ".1f", 2e3), _f(mc.vertex_sd[k][1], ".1f")]
         rows.append(row)
-    headers = ["vertex", "nominal Ø (mm)", "nominal Z (mm)", "ΔX radius (µm)", "ΔZ (µm)"]
-    headers += ["u(X) GUM (µm)", "u(Z) GUM (µm)"]
+    headers = ["vertex", "nominal Ø (mm)", "nominal Z (mm)", "ΔØ (µm)", "ΔZ (µm)"]
+    headers += ["u(Ø) linearised (µm)", "u(Z) linearised (µm)"]
     if mc is not None:
-        headers += ["u(X) MC (µm)", "u(Z) MC (µm)"]
+        headers += ["u(Ø) Monte Carlo (µm)", "u(Z) Monte Carlo (µm)"]
     return _Table(
         headers,
         rows,
-        caption="Adjusted tool-path vertices (part frame, X as radius for the moves): move "
-        "from nominal and standard uncertainty, linearised (GUM) and Monte Carlo from the "
+        caption="Adjusted tool-path vertices (the corners of the finish cut): move from "
+        "nominal on the diameter and in Z, and standard uncertainty, linearised (GUM: the "
+        "Guide to the expression of Uncertainty in Measurement) and by Monte Carlo from the "
         "posterior (JCGM 101).",
     )
 
@@ -54,9 +55,10 @@ def _profile_section(res) -> list:
         _Fig(
             "profile",
             lambda: profile_figure(res, exaggeration=fac),
-            f"The part as drawn (black), the probe points and fitted features and the adjusted "
-            f"tool path with its simultaneous 95 % band; deviations exaggerated × {fac:g} "
-            "along the outward normal.",
+            f"The part as drawn (black; vertical axis labelled with diameters) with each "
+            f"feature's tolerance zone (red shade), the probe points and fitted features (blue) "
+            f"and the adjusted tool path (green) with its simultaneous 95 % band; deviations "
+            f"exaggerated × {fac:g} along the outward normal.",
         )
     )
     if res.uncertainty is not None:
@@ -64,9 +66,13 @@ def _profile_section(res) -> list:
             _Fig(
                 "offset",
                 lambda: offset_figure(res),
-                "Normal offset of the adjusted tool path from nominal along the contour (µm): "
-                "the mirrored fitted deviation, its pointwise and simultaneous 95 % bands. The "
-                "simultaneous band covers the whole path with 95 % probability.",
+                "Along the nominal contour, every value as drawn (Ø for diameters, Z for faces, "
+                "normal for tapers and arcs; µm). Top: the measured part's fitted deviation "
+                "(blue) with the tolerance limits (red) and each decision point with ± U "
+                "(black). Bottom: the adjusted tool path's change from nominal (the mirrored "
+                "deviation times the applied gain) with its pointwise and simultaneous 95 % "
+                "bands; the simultaneous band covers the whole path with 95 % probability.",
+                full=True,
             )
         )
         blocks.append(_vertex_table(res))
@@ -104,7 +110,8 @@ def _residuals_section(res) -> list:
             "residuals",
             lambda: residuals_figure(res),
             "Residuals (distance of each probe point from the fitted feature, µm) along each "
-            "feature; red crosses are outliers with their probe-file line.",
+            "feature; shaded: ±2σ of the probe. Red ×: an outlier (left out of the fit) with "
+            "its probe-file line; red ▲ or ▼: an outlier beyond the scale, its value printed.",
         ),
         _Table(
             [
@@ -122,9 +129,11 @@ def _residuals_section(res) -> list:
         _Para(
             "Every standard uncertainty uses the probe sigma in the 'sigma used' column, "
             "not a feature's own residual sd (a few points say little about sigma): "
-            + (res.fit.sigma.describe() if res.fit.sigma is not None else "not recorded")
-            + ". Expanded uncertainties use Student-t coverage factors with "
-            "Welch-Satterthwaite effective degrees of freedom (docs/uncertainty.md)."
+            + (micro(res.fit.sigma.describe()) if res.fit.sigma is not None else "not recorded")
+            + ". An expanded uncertainty U is a standard uncertainty times a coverage factor "
+            "slightly above 2: the factor grows when the uncertainty rests on few points "
+            "(Student-t with the effective degrees of freedom of the combined uncertainty, "
+            "Welch-Satterthwaite; docs/uncertainty.md)."
         ),
     ]
 
@@ -160,8 +169,12 @@ def _posterior_table(post) -> _Table:
     return _Table(
         ["parameter", "unit", "mean", "sd", "2.5 %", "97.5 %", "τ (steps)", "ESS", "R-hat"],
         rows,
-        caption="Posterior summary (* τ not trusted: kept chain shorter than "
-        f"{crit.get('tau_factor', 50):g} τ).",
+        caption="Posterior summary: mean, standard deviation and 95 % interval of each "
+        "parameter. τ: autocorrelation time, the steps between nearly independent draws "
+        f"(* not trusted: the kept chain is shorter than {crit.get('tau_factor', 50):g} τ); "
+        "ESS: effective sample size, the independent draws the chain is worth; R-hat: "
+        "agreement of the independent ensembles (1 is perfect; above "
+        f"{crit.get('rhat_max', 1.01):g} they disagree). Red rows fail a criterion.",
         classes=classes,
     )
 
@@ -194,6 +207,7 @@ def _posterior_section(res) -> list:
             lambda: trace_figure(post),
             "Traces after burn-in: mixing and stationarity at a glance; the ensembles should "
             "overlap.",
+            full=True,
         ),
         _Fig(
             "diagnostics",
@@ -209,6 +223,7 @@ def _posterior_section(res) -> list:
                 lambda: corner_figure(res, feat),
                 f"Corner plot of {feat!r}: the posterior against the robust fit's linearised "
                 "normal approximation.",
+                shrink=1.0,
             )
         )
     return blocks
@@ -240,7 +255,10 @@ def _budget_section(res) -> list:
             lambda: budget_figure(lin, res.study.profile),
             "Uncertainty budget (linearised, GUM): which declared source contributes how much "
             "to each fitted parameter and to the adjusted path; the shares sum to the total "
-            "variance.",
+            "variance. Sources: repeatability of the probe, ball_radius (stylus calibration), "
+            "pretravel, scale_x / scale_z (axis scale errors), x_centre (centre-line offset), "
+            "z_offset (work offset in Z), rotation (of the probe frame).",
+            full=True,
         ),
         _Table(
             ["parameter", "u", *[f"{s} (%)" for s in sources]],

@@ -7,7 +7,17 @@ import html
 import io
 
 from ._figures import RC
-from ._report_model import _Fig, _is_num, _Para, _Pre, _Table
+from ._report_model import (
+    CLASS_COLOURS,
+    _Bullets,
+    _Fig,
+    _is_num,
+    _PageBreak,
+    _Para,
+    _Pre,
+    _Table,
+    _Tables,
+)
 from ._report_sections import _sections
 from ._report_summary import _summary_table
 
@@ -23,8 +33,7 @@ table{border-collapse:collapse;margin:.6em 0 1em;font-size:.86em}
 th,td{border:1px solid #ccc;padding:.25em .5em;text-align:left;vertical-align:top}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
 caption{caption-side:bottom;text-align:left;font-size:.92em;color:#555;padding-top:.3em}
-tr.compensate td{background:#fff4e0}tr.measure-more td{background:#e8f0ff}
-tr.bad td{background:#ffe5e5}
+ul.reasons{margin:.2em 0 .8em;font-size:.92em}h3.verdict{font-size:1em;margin:.8em 0 .2em}
 figure{margin:1em 0}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{font-size:.92em;color:#555}
 pre{background:#f7f7f7;border:1px solid #e3e3e3;padding:.6em;overflow-x:auto;font-size:.82em}
@@ -32,7 +41,10 @@ pre .add{color:#0a6b0a;background:#eaffea}pre .del{color:#a00;background:#ffecec
 pre .hunk{color:#555}
 p.warn{background:#fff0f0;border-left:4px solid #c33;padding:.4em .6em}
 p.note{background:#f4f4f4;border-left:4px solid #999;padding:.4em .6em}
-"""
+p.fail{background:#f8d0d0;font-weight:bold;padding:.4em .6em}
+p.pass{background:#d9f2d9;font-weight:bold;padding:.4em .6em}
+p.sign{margin-top:2.5em}div.tables{display:flex;flex-wrap:wrap;gap:2em;align-items:flex-start}
+""" + "".join(f"tr.{c} td,td.{c},h3.{c} span{{background:{v}}}" for c, v in CLASS_COLOURS.items())
 
 
 def _render_html_block(b, png: dict | None = None) -> str:
@@ -41,16 +53,15 @@ def _render_html_block(b, png: dict | None = None) -> str:
         cls = "" if b.kind == "p" else f' class="{b.kind}"'
         return f"<p{cls}>{e(b.text)}</p>"
     if isinstance(b, _Table):
-        head = "".join(f"<th>{e(h)}</th>" for h in b.headers)
-        body = []
-        for k, row in enumerate(b.rows):
-            cls = b.classes[k] if k < len(b.classes) and b.classes[k] else ""
-            cells = "".join(
-                f'<td class="num">{e(c)}</td>' if _is_num(c) else f"<td>{e(c)}</td>" for c in row
-            )
-            body.append(f'<tr class="{cls}">{cells}</tr>' if cls else f"<tr>{cells}</tr>")
-        cap = f"<caption>{e(b.caption)}</caption>" if b.caption else ""
-        return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+        return _table_html(b)
+    if isinstance(b, _Bullets):
+        items = "".join(f"<li>{e(r)}</li>" for r in b.items)
+        cls = f' class="verdict {b.kind}"' if b.kind else ""
+        return f'<h3{cls}><span>{e(b.title)}</span></h3><ul class="reasons">{items}</ul>'
+    if isinstance(b, _PageBreak):
+        return ""
+    if isinstance(b, _Tables):
+        return '<div class="tables">' + "".join(_table_html(t) for t in b.tables) + "</div>"
     if isinstance(b, _Pre):
         out = []
         for line in b.lines:
@@ -74,6 +85,27 @@ def _render_html_block(b, png: dict | None = None) -> str:
             f"<figcaption>{e(b.caption)}</figcaption></figure>"
         )
     raise TypeError(f"unknown report block {b!r}")
+
+
+def _table_html(b: _Table) -> str:
+    e = html.escape
+    head = "".join(f"<th>{e(h)}</th>" for h in b.headers)
+    body = []
+    for k, row in enumerate(b.rows):
+        cls = b.classes[k] if k < len(b.classes) and b.classes[k] else ""
+        marks = b.cells[k] if b.cells is not None and k < len(b.cells) else [""] * len(row)
+        cells = []
+        for c, m in zip(row, marks, strict=False):
+            names = " ".join(x for x in ("num" if _is_num(c) else "", m) if x)
+            cells.append(f'<td class="{names}">{e(c)}</td>' if names else f"<td>{e(c)}</td>")
+        body.append(
+            f'<tr class="{cls}">{"".join(cells)}</tr>' if cls else f"<tr>{''.join(cells)}</tr>"
+        )
+    cap = f"<caption>{e(b.caption)}</caption>" if b.caption else ""
+    title = f"<p><strong>{e(b.title)}</strong></p>" if b.title else ""
+    return (
+        f"{title}<table>{cap}<thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+    )
 
 
 def _png(fig) -> bytes:

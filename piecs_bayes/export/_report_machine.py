@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._report_model import _f, _Para, _Pre, _Table
+from ._report_model import _f, _Para, _Pre, _Table, micro
 
 
 def _program_section(res) -> list:
@@ -47,7 +47,12 @@ def _program_section(res) -> list:
             rows,
             caption="Rewritten blocks.",
         ),
-        _Pre(adj.diff.splitlines(), caption="Unified diff against the original program", diff=True),
+        _Pre(
+            adj.diff.splitlines(),
+            caption="Unified diff against the original program",
+            diff=True,
+            pdf=False,
+        ),
     ]
 
 
@@ -118,7 +123,7 @@ def _errspec_section(res) -> list:
             ),
             _Table(["axis", "error ± u (µm)", "correction ± u (µm)", "status", "why"], rows),
         ]
-        notes = list(upd.reasons) + list(res.offset_notes)
+        notes = [micro(n) for n in (*upd.reasons, *res.offset_notes)]
         if notes:
             blocks.append(_Pre([f"- {n}" for n in notes], caption="Notes"))
     return blocks

@@ -1,72 +1,73 @@
-"""The report as PDF (matplotlib `PdfPages`, A4 landscape: text pages for the
-tables, one page per figure)."""
+"""The report as PDF: A4 landscape pages drawn with matplotlib (`_pdf_flow`). The
+verdict fills the first page; then the sections follow each other, text, tables
+(with pass/fail colours) and figures flowed so that no page is left nearly empty."""
 
 from __future__ import annotations
 
 import io
+import itertools
 
 from ._figures import RC
-from ._report_model import _Fig, _is_num, _Para, _Pre, _Table
+from ._pdf_blocks import FigurePiece, keep_height, place_block, place_heading
+from ._pdf_flow import BODY, TITLE, Flow, render_pages, text_op
+from ._report_model import _Fig, _PageBreak
 from ._report_sections import _sections
-from ._text_pages import text_pages
 
 __all__ = ["report_pdf"]
 
 
-def _table_lines(t: _Table) -> list[str]:
-    import textwrap
+def _place_section(flow: Flow, head: str, blocks, on_figure, numbers) -> None:
+    """A section: its heading, then its blocks; a figure that does not fit the page
+    (or comes after one that waits) floats to the top of the next page."""
+    figures = {}
+    for i, b in enumerate(blocks):
+        if isinstance(b, _Fig):
+            fig = b.make()
+            if on_figure is not None:
+                on_figure(b.name, fig)
+            n = next(numbers)
+            caption = f"Figure {n} (section {head}). {b.caption}"
+            figures[i] = FigurePiece(fig, caption, full=b.full, shrink=b.shrink)
+    text = [i for i, b in enumerate(blocks) if i not in figures and not isinstance(b, _PageBreak)]
+    keep = keep_height(blocks[text[0]]) if text else 1.0
+    if figures and min(figures) < (text[0] if text else len(blocks)):
+        keep = min(keep, figures[min(figures)].smallest)  # a figure first: it may float
+    place_heading(flow, head, keep)
+    for i, b in enumerate(blocks):
+        if isinstance(b, _PageBreak):
+            flow.new_page()
+        elif i in figures:
+            if flow.floats or not figures[i].fits(flow):
+                flow.floats.append(figures[i])
+            else:
+                figures[i].place(flow)
+        else:
+            place_block(flow, b)
 
-    headers = t.short or t.headers
-    w = [len(h) for h in headers]
-    for row in t.rows:
-        w = [max(a, len(c)) for a, c in zip(w, row, strict=False)]
-    w = [min(x, 66) for x in w]
 
-    def fmt(cells):
-        out = []
-        for c, x in zip(cells, w, strict=False):
-            c = c if len(c) <= x else c[: x - 1] + "…"
-            out.append(c.rjust(x) if _is_num(c) else c.ljust(x))
-        return "  ".join(out).rstrip()
-
-    lines = textwrap.wrap(t.caption, 160) if t.caption else []
-    lines += [fmt(headers), "  ".join("-" * x for x in w)]
-    lines += [fmt(r) for r in t.rows]
-    return lines
-
-
-def _block_lines(b) -> list[str]:
-    import textwrap
-
-    if isinstance(b, _Para):
-        prefix = "! " if b.kind == "warn" else ""
-        return textwrap.wrap(prefix + b.text, 160) + [""]
-    if isinstance(b, _Table):
-        return _table_lines(b) + [""]
-    if isinstance(b, _Pre):
-        return ([b.caption + ":"] if b.caption else []) + list(b.lines) + [""]
-    return []
+def _layout(res, sections, on_figure=None) -> Flow:
+    """Every section's blocks placed on pages (figures drawn here, once)."""
+    flow = Flow()
+    h, title = text_op([f"piecs_bayes report: {res.study.name}"], TITLE, weight="bold")
+    flow.place(h + 0.04, title)
+    h, sub = text_op(
+        [f"part {res.part or '–'} · {res.created} · lengths in mm, deviations in µm"],
+        BODY,
+        color="0.35",
+    )
+    flow.place(h + 0.05, sub)
+    numbers = itertools.count(1)
+    for k, (_, t, blocks) in enumerate(sections, start=1):
+        _place_section(flow, f"{k}. {t}", blocks, on_figure, numbers)
+    flow.flush()
+    return flow
 
 
 def _pdf_pages(res, sections, on_figure=None):
     """Yield the PDF's pages as Figures (and call `on_figure(name, fig)` for figures)."""
+    flow = _layout(res, sections, on_figure)
     footer = f"piecs_bayes report · {res.study.name} · part {res.part or '–'} · {res.created}"
-    for k, (sid, t, blocks) in enumerate(sections, start=1):
-        head = f"{k}. {t}"
-        lines: list[str] = []
-        for b in blocks:
-            lines += _block_lines(b)
-        if lines:
-            sub = f"{res.study.name}, part {res.part or '–'}" if sid == "summary" else ""
-            yield from text_pages(head, lines, subtitle=sub, footer=footer)
-        for b in blocks:
-            if isinstance(b, _Fig):
-                fig = b.make()
-                if on_figure is not None:
-                    on_figure(b.name, fig)
-                old = fig.get_suptitle()
-                fig.suptitle(f"{head}\n{old}" if old else head, fontsize=11)
-                yield fig
+    yield from render_pages(flow.pages, footer)
 
 
 def _pdf(pages, res) -> bytes:
@@ -86,7 +87,7 @@ def _pdf(pages, res) -> bytes:
 
 
 def report_pdf(res) -> bytes:
-    """The report as PDF bytes (A4 landscape; text pages for tables, one page per figure)."""
+    """The report as PDF bytes (A4 landscape; the verdict first)."""
     from matplotlib import rc_context
 
     with rc_context(RC):

@@ -6,13 +6,15 @@ from ._report_capability import _capability_section
 from ._report_fit import _budget_section, _posterior_section, _profile_section, _residuals_section
 from ._report_machine import _errspec_section, _program_section
 from ._report_summary import _inputs_section, _summary_section
+from ._report_verdict import verdict_section
 
 __all__ = ["SECTIONS"]
 
 
 #: (id, title) of the report's sections, in order
 SECTIONS = (
-    ("summary", "Summary"),
+    ("verdict", "Verdict"),
+    ("summary", "Decisions per feature"),
     ("profile", "Profile and adjusted tool path"),
     ("residuals", "Residuals"),
     ("posterior", "Posterior diagnostics"),
@@ -25,6 +27,7 @@ SECTIONS = (
 
 
 _BUILDERS = {
+    "verdict": verdict_section,
     "summary": _summary_section,
     "profile": _profile_section,
     "residuals": _residuals_section,

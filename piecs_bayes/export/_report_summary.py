@@ -1,6 +1,6 @@
-"""Report sections that frame the others: the summary (headline, one row per
-feature, the reasons behind each verdict) and the inputs (files, versions,
-settings, how to reproduce the run)."""
+"""Report sections that frame the others: the decisions per feature (one row per
+feature as drawn, the reasons behind each verdict) and the inputs (files, versions,
+settings, how to reproduce the run). `summary_rows` feeds the verdict page too."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import math
 import numpy as np
 
 from ..fit import coverage_factor
-from ._report_model import _f, _Para, _Pre, _Table
+from ..geometry import drawn_scale
+from ._report_model import _Bullets, _f, _Para, _Pre, _Table, _Tables, css_class
 
 __all__ = ["summary_rows"]
 
@@ -17,13 +18,16 @@ __all__ = ["summary_rows"]
 #: coverage probability of a k = 2 interval under the normal (JCGM 100 G.6)
 K2_COVERAGE = 0.9544997361036416
 
+#: the coordinate of a drawn tolerance, as a table shows it
+ON_SIGN = {"diameter": "Ø", "radius": "R", "length": "Z", "normal": "normal"}
+
 
 def _nominal_text(f) -> str:
     """The feature as on the drawing, compactly (X as diameter Ø, mm)."""
     (x0, z0), (x1, z1) = f.p0, f.p1
     if f.kind == "arc":
         cx, cz = f.center
-        return f"arc R{f.radius:.3f} {'ccw' if f.ccw else 'cw'}, centre Ø{2 * cx:.3f} Z{cz:.3f}"
+        return f"R{f.radius:.3f} {'ccw' if f.ccw else 'cw'}, centre Ø{2 * cx:.3f} Z{cz:.3f}"
     if abs(x1 - x0) < 1e-9:
         return f"Ø{2 * x0:.3f}, Z{z0:.3f} to {z1:.3f}"
     if abs(z1 - z0) < 1e-9:
@@ -31,10 +35,46 @@ def _nominal_text(f) -> str:
     return f"taper Ø{2 * x0:.3f} Z{z0:.3f} to Ø{2 * x1:.3f} Z{z1:.3f}"
 
 
+def tolerance_text(lo_um: float, hi_um: float, coordinate: str) -> str:
+    """A drawn tolerance as a drawing writes it: `"Ø ±20"`, `"Z -10/+30"` (µm)."""
+    on = ON_SIGN.get(coordinate, coordinate)
+    if math.isclose(-lo_um, hi_um, rel_tol=1e-9, abs_tol=1e-9):
+        return f"{on} ±{hi_um:g}"
+    return f"{on} {lo_um:+g}/{hi_um:+g}"
+
+
+def _empty_row(f, fit, gain: float) -> dict:
+    k = drawn_scale(f)
+    lo, hi = sorted((k * f.tolerance[0], k * f.tolerance[1]))
+    return {
+        "feature": f.id,
+        "nominal": _nominal_text(f),
+        "coordinate": f.tolerance_on,
+        "scale": k,
+        "tol_lower_um": lo * 1e3,
+        "tol_upper_um": hi * 1e3,
+        "at": "",
+        "deviation_um": math.nan,
+        "u_um": math.nan,
+        "U_um": math.nan,
+        "dof": math.nan,
+        "bayes_um": math.nan,
+        "bayes_U_um": math.nan,
+        "verdict": "not measured" if f.id not in fit.fits else "–",
+        "gain": gain,
+        "correction_um": math.nan,
+        "null_band_um": math.nan,
+        "conformance": "",
+        "p_exceed": math.nan,
+    }
+
+
 def summary_rows(res) -> list[dict]:
-    """One row per profile feature: nominal, tolerance, normal deviation with its
-    expanded uncertainty U = 2u (robust fit, and Bayesian when sampled), verdict,
-    gain and correction. Lengths in µm except `nominal`."""
+    """One row per profile feature, every length as drawn (`coordinate`: on the
+    diameter for a diameter, on Z for a face, along the normal for tapers and arcs;
+    `scale` times the normal deviation): nominal, tolerance, deviation with its
+    expanded uncertainty U = k u (robust fit, and Bayesian when sampled), null band,
+    verdict, applied gain and correction. Lengths in µm except `nominal`."""
     study, fit = res.study, res.fit
     dec = res.decisions
     by_dec = {}
@@ -48,97 +88,88 @@ def summary_rows(res) -> list[dict]:
         chars = characteristics(study, fit, at="worst")
     rows = []
     for f in study.profile.features:
-        lo, hi = f.tolerance
-        row = {
-            "feature": f.id,
-            "nominal": _nominal_text(f),
-            "tol_lower_um": lo * 1e3,
-            "tol_upper_um": hi * 1e3,
-            "at": "",
-            "deviation_um": math.nan,
-            "u_um": math.nan,
-            "U_um": math.nan,
-            "dof": math.nan,
-            "bayes_um": math.nan,
-            "bayes_U_um": math.nan,
-            "verdict": "not measured" if f.id not in fit.fits else "–",
-            "gain": float(res.gains.get(f.id, 0.0)),
-            "correction_um": math.nan,
-            "conformance": "",
-            "p_exceed": math.nan,
-        }
+        row = _empty_row(f, fit, float(res.gains.get(f.id, 0.0)))
+        k, a = row["scale"] * 1e3, abs(row["scale"]) * 1e3
         if f.id in by_dec:
             d, c = by_dec[f.id]
             row.update(
                 at=c.at if c is not None else "",
-                deviation_um=d.estimate * 1e3,
-                u_um=d.u_estimate * 1e3,
-                U_um=d.conformance_before.expanded * 1e3,
+                deviation_um=d.estimate * k,
+                u_um=d.u_estimate * a,
+                U_um=d.conformance_before.expanded * a,
                 dof=d.dof,
                 verdict=d.verdict + (f" (+{d.more_points} points)" if d.more_points else ""),
                 gain=d.gain,
-                correction_um=d.correction * 1e3,
+                correction_um=d.correction * k,
+                null_band_um=d.null_band * a,
                 conformance=d.conformance_before.state,
                 p_exceed=d.p_exceed,
             )
         elif f.id in chars:
             c = chars[f.id]
-            k = coverage_factor(c.dof, K2_COVERAGE)
+            cov = coverage_factor(c.dof, K2_COVERAGE)
             row.update(
-                at=c.at, deviation_um=c.mean * 1e3, u_um=c.sd * 1e3, U_um=k * c.sd * 1e3, dof=c.dof
+                at=c.at, deviation_um=c.mean * k, u_um=c.sd * a, U_um=cov * c.sd * a, dof=c.dof
             )
         bc = (res.bayes_characteristics or {}).get(f.id)
         if bc is not None:
-            row["bayes_um"], row["bayes_U_um"] = bc[0] * 1e3, 2 * bc[1] * 1e3
+            row["bayes_um"], row["bayes_U_um"] = bc[0] * k, 2 * bc[1] * a
         rows.append(row)
     return rows
 
 
 def _summary_table(res) -> _Table:
-    rows, classes = [], []
+    rows, classes, cells = [], [], []
     bayes = res.bayes_characteristics is not None
     for r in summary_rows(res):
-        cells = [
+        row = [
             r["feature"],
             r["nominal"],
-            f"{r['tol_lower_um']:+g}/{r['tol_upper_um']:+g}",
+            tolerance_text(r["tol_lower_um"], r["tol_upper_um"], r["coordinate"]),
             r["at"] or "–",
-            _f(r["deviation_um"], scale=1) + " ± " + _f(r["U_um"], ".2f", 1),
+            _f(r["deviation_um"], "+.1f", 1) + " ± " + _f(r["U_um"], ".1f", 1),
         ]
         if bayes:
-            cells.append(_f(r["bayes_um"], scale=1) + " ± " + _f(r["bayes_U_um"], ".2f", 1))
-        cells += [
+            row.append(_f(r["bayes_um"], "+.1f", 1) + " ± " + _f(r["bayes_U_um"], ".1f", 1))
+        row += [
             r["conformance"] or "–",
+            _f(r["null_band_um"], ".1f", 1),
             _f(r["p_exceed"], ".3f", 1),
             r["verdict"],
             f"{r['gain']:.2f}",
-            _f(r["correction_um"], scale=1),
+            _f(r["correction_um"], "+.1f", 1) if r["gain"] > 0 else "–",
         ]
-        rows.append(cells)
-        classes.append(r["verdict"].split(" (")[0].replace(" ", "-"))
-    headers = [
-        "feature",
-        "nominal (X as Ø, mm)",
-        "tolerance (µm)",
-        "at",
-        "deviation ± U (µm, 95.45 %)",
-    ]
+        rows.append(row)
+        cls = [""] * len(row)
+        cls[5 + bayes] = css_class(r["conformance"]) if r["conformance"] else ""
+        cls[8 + bayes] = css_class(r["verdict"])
+        cells.append(cls)
+        classes.append("")
+    headers = ["feature", "nominal (mm)", "tolerance (µm)", "at", "deviation ± U (µm)"]
     if bayes:
-        headers.append("Bayes ± U (µm, k=2)")
-    headers += ["conformance", "P(|δ|>band)", "verdict", "gain", "correction (µm)"]
-    short = ["feature", "nominal (Ø, mm)", "tol. (µm)", "at", "δ ± U (µm)"]
-    short += (["Bayes δ ± U"] if bayes else []) + ["conformance", "P>band", "verdict"]
-    short += ["gain", "corr. (µm)"]
+        headers.append("Bayes: deviation ± U (µm)")
+    headers += [
+        "conformance as measured",
+        "null band ± (µm)",
+        "P(beyond null band)",
+        "verdict",
+        "applied gain",
+        "correction (µm)",
+    ]
     return _Table(
         headers,
         rows,
-        short=short,
-        caption="Deviation: normal deviation δ of the fitted feature from nominal at the "
-        "point 'at' (+ outward, i.e. more material on a shaft; for a diameter the "
-        "diameter error is 2δ), robust fit; U = 2u with u combining the fit and the "
-        "study's systematic sources. Bayes: the same δ from the posterior draws. "
-        "Gain: fraction of the fitted deviation mirrored into the finish cut.",
+        caption="Every length as drawn: on the diameter Ø for a diameter, on the axial "
+        "position Z for a face or shoulder, along the surface normal for tapers and arcs "
+        "(+: more material). Deviation: of the fitted feature from nominal at the point "
+        "'at' (start, mid or end: the worst of them), robust fit; U: expanded uncertainty "
+        "(95 %, about 2 standard uncertainties, from the fit and the study's systematic "
+        "sources). Bayes: the same deviation from the posterior draws. Null band: "
+        "deviations inside it are not worth correcting (10 % of the tolerance width unless "
+        "the study sets it). Applied gain: the fraction of the deviation mirrored into the "
+        "finish cut; correction: the resulting change of the cut.",
         classes=classes,
+        cells=cells,
     )
 
 
@@ -153,19 +184,6 @@ def _headline(res) -> list[str]:
     ]
     if getattr(res, "part_note", ""):
         out.append(res.part_note[0].upper() + res.part_note[1:] + ".")
-    if res.decisions is not None:
-        verdicts = [d.verdict for d in res.decisions.decisions]
-        n_comp = verdicts.count("compensate")
-        largest = max(abs(d.correction) for d in res.decisions.decisions) * 1e3
-        others = ", ".join(
-            f"{v}: {verdicts.count(v)}" for v in dict.fromkeys(verdicts) if v != "compensate"
-        )
-        out.append(
-            f"Decision: compensate {n_comp} of {len(verdicts)} features"
-            + (f" (largest correction {largest:.1f} µm)" if n_comp else "")
-            + (f"; {others}" if others else "")
-            + "."
-        )
     if res.path is not None:
         out.append(
             f"Adjusted tool path: {len(res.path.vertices)} vertices, largest vertex move "
@@ -185,21 +203,37 @@ def _headline(res) -> list[str]:
 
 
 def _summary_section(res) -> list:
-    blocks = [_Para(t) for t in _headline(res)]
+    blocks: list = [_Para(t) for t in _headline(res)]
     for step, why in res.unavailable.items():
         blocks.append(_Para(f"{step}: not available: {why}", "warn"))
     if res.skipped:
         blocks.append(_Para(f"Steps not run (switched off): {', '.join(res.skipped)}.", "note"))
     blocks.append(_summary_table(res))
     if res.decisions is not None:
-        lines = []
+        blocks.append(
+            _Para(
+                "Why each verdict (lengths as drawn, in µm; the last line of each is the "
+                "conclusion):",
+                "note",
+            )
+        )
         for d in res.decisions.decisions:
-            lines.append(f"{d.feature}: {d.verdict}")
-            lines += [f"  - {r}" for r in d.reasons]
+            blocks.append(
+                _Bullets(f"{d.feature}: {d.verdict}", list(d.reasons), css_class(d.verdict))
+            )
         if res.decisions.unmeasured:
-            lines.append(f"not measured (no decision): {', '.join(res.decisions.unmeasured)}")
-        blocks.append(_Pre(lines, caption="The reasons behind each verdict"))
+            blocks.append(
+                _Para(f"Not measured (no decision): {', '.join(res.decisions.unmeasured)}.")
+            )
     return blocks
+
+
+#: settings shown with what they mean where the bare name misleads
+_SETTING_LABELS = {
+    "gain": "gain ([compensation]; only without decisions)",
+    "max_correction_mm": "max_correction (mm)",
+    "nose_radius_mm": "nose radius (mm)",
+}
 
 
 def _inputs_section(res) -> list:
@@ -212,7 +246,11 @@ def _inputs_section(res) -> list:
             shown = str(f.path)
         rows.append([f.role, shown, str(f.size), f.sha256])
     vers = [[k, v] for k, v in res.versions.items()]
-    sets = [[k, "–" if v is None else str(v)] for k, v in res.settings.items() if k != "command"]
+    sets = [
+        [_SETTING_LABELS.get(k, k), "–" if v is None else str(v)]
+        for k, v in res.settings.items()
+        if k != "command"
+    ]
     times = [[k, f"{v:.1f}"] for k, v in res.timings.items()]
     cmd = [f"piecs-bayes report {res.study.path} --out DIR --seed {res.settings.get('seed', 0)}"]
     if res.bayes is None:
@@ -223,9 +261,13 @@ def _inputs_section(res) -> list:
         cmd[0] += f" --nose-radius {res.nose_radius:g}"
     blocks = [
         _Table(["role", "file", "bytes", "SHA-256"], rows, caption="Input files"),
-        _Table(["package", "version"], vers, caption="Versions"),
-        _Table(["setting", "value"], sets, caption="Settings of this run"),
-        _Table(["step", "seconds"], times, caption="Wall time per step"),
+        _Tables(
+            [
+                _Table(["package", "version"], vers, caption="Versions"),
+                _Table(["setting", "value"], sets, caption="Settings of this run"),
+                _Table(["step", "seconds"], times, caption="Wall time per step"),
+            ]
+        ),
         _Pre(cmd, caption="To reproduce (same inputs, versions and seed)"),
     ]
     if res.settings.get("command"):

@@ -1,7 +1,11 @@
 """Results tables: pure ``result -> text`` writers (JSON and CSV).
 
 Numbers are written with 10 significant digits (0.1 nm on a 100 mm part);
-lengths are mm in the part frame, X as radius, angles in rad.
+lengths are mm in the part frame, X as radius, angles in rad. The CSVs say so in
+their headers: the unit in a column's name (`x_radius_mm`, `u_offset_mm`), or a
+`unit` column where one column holds values of several units (fit.csv,
+posterior.csv, uncertainty_budget.csv). Their rows come from the results' `rows()`
+methods, which `to_dataframe()` hands to pandas: the two agree.
 """
 
 from __future__ import annotations
@@ -18,14 +22,21 @@ SCHEMA_VERSION = 1
 
 
 def to_csv(rows: list[dict], columns: list[str] | None = None) -> str:
-    """Rows of dicts as CSV text (header first, ``\\n`` line ends)."""
+    """Rows of dicts as CSV text (header first, ``\\n`` line ends); floats with 10
+    significant digits and a decimal point (46.0, not 46: a float column reads back
+    as floats), `None` as an empty cell."""
     columns = columns or (list(rows[0]) if rows else [])
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
     w.writeheader()
     for r in rows:
-        w.writerow({k: (f"{v:.10g}" if isinstance(v, float) else v) for k, v in r.items()})
+        w.writerow({k: (_float_text(v) if isinstance(v, float) else v) for k, v in r.items()})
     return buf.getvalue()
+
+
+def _float_text(v: float) -> str:
+    text = f"{v:.10g}"
+    return text + ".0" if text.lstrip("-").isdigit() else text
 
 
 def fit_json(fit, *, study=None) -> str:
@@ -57,130 +68,48 @@ def fit_json(fit, *, study=None) -> str:
 
 
 def fit_csv(fit) -> str:
-    """One row per fitted parameter: value and standard uncertainty."""
+    """One row per fitted parameter (`ProfileFit.rows`): value and standard
+    uncertainty in the row's `unit` (mm, or rad for a line's rotation)."""
     return to_csv(fit.rows())
 
 
 def residuals_csv(fit) -> str:
-    """One row per probe point: residual, robust weight, outlier flag, error vector."""
-    rows = []
-    for f in fit:
-        out = set(int(i) for i in f.outliers)
-        for i in range(f.n):
-            rows.append(
-                {
-                    "feature": f.id,
-                    "line": int(f.lines[i]),
-                    "x": float(f.points[i, 0]),
-                    "z": float(f.points[i, 1]),
-                    "residual": float(f.residuals[i]),
-                    "weight": float(f.weights[i]),
-                    "outlier": int(i in out),
-                    "nominal_x": float(f.nominal_points[i, 0]),
-                    "nominal_z": float(f.nominal_points[i, 1]),
-                    "error_x": float(f.error_vectors[i, 0]),
-                    "error_z": float(f.error_vectors[i, 1]),
-                }
-            )
-    return to_csv(rows)
+    """One row per probe point (`ProfileFit.residual_rows`): ball centre, residual,
+    robust weight, outlier flag, nominal point and error vector (mm, radius X)."""
+    return to_csv(fit.residual_rows())
 
 
 def path_csv(path, *, bounds=None) -> str:
-    """Adjusted tool-path vertices (part frame, radius X) with their moves from nominal.
+    """Adjusted tool-path vertices (`AdjustedPath.rows`: part frame, mm, X as a
+    radius) with their moves from nominal.
 
     ``bounds``, when given, is a mapping of extra per-vertex columns (e.g.
-    standard uncertainties) added beside the coordinates.
+    standard uncertainties; name them with their unit) added beside the coordinates.
     """
-    nominal = path.nominal.vertices
-    ids = path.nominal.ids
-    rows = []
-    for j, (v, nv) in enumerate(zip(path.vertices, nominal, strict=True)):
-        before = ids[j - 1] if j > 0 else ""
-        after = ids[j] if j < len(ids) else ""
-        row = {
-            "vertex": j,
-            "between": f"{before}|{after}".strip("|"),
-            "junction": path.nominal.junctions[j - 1] if 0 < j < len(ids) else "end",
-            "nominal_x": float(nv[0]),
-            "nominal_z": float(nv[1]),
-            "x": float(v[0]),
-            "z": float(v[1]),
-            "dx": float(v[0] - nv[0]),
-            "dz": float(v[1] - nv[1]),
-        }
-        for key, col in (bounds or {}).items():
+    rows = path.rows()
+    for key, col in (bounds or {}).items():
+        for j, row in enumerate(rows):
             row[key] = float(np.asarray(col)[j])
-        rows.append(row)
     return to_csv(rows)
 
 
 def bounds_csv(tpu) -> str:
-    """Per-vertex standard uncertainties of an adjusted path (one ToolpathUncertainty)."""
-    rows = []
-    for j, (v, c) in enumerate(zip(tpu.vertices, tpu.vertex_cov, strict=True)):
-        sx, sz = float(np.sqrt(max(c[0, 0], 0.0))), float(np.sqrt(max(c[1, 1], 0.0)))
-        rows.append(
-            {
-                "vertex": j,
-                "x": float(v[0]),
-                "z": float(v[1]),
-                "u_x": sx,
-                "u_z": sz,
-                "corr_xz": float(c[0, 1] / (sx * sz)) if sx > 0 and sz > 0 else 0.0,
-                "method": tpu.method,
-            }
-        )
-    return to_csv(rows)
+    """Per-vertex standard uncertainties of an adjusted path (`ToolpathUncertainty.rows`)."""
+    return to_csv(tpu.rows())
 
 
 def band_csv(tpu, profile) -> str:
     """The adjusted path's normal offset from nominal along the contour with its
-    standard uncertainty and pointwise / simultaneous 95 % bands."""
-    b = tpu.bands
-    g = tpu.grid
-    rows = []
-    for i in range(len(g)):
-        rows.append(
-            {
-                "feature": profile.features[int(g.feature[i])].id,
-                "t": float(g.t[i]),
-                "nominal_x": float(g.points[i, 0]),
-                "nominal_z": float(g.points[i, 1]),
-                "normal_x": float(g.normals[i, 0]),
-                "normal_z": float(g.normals[i, 1]),
-                "offset": float(tpu.offset[i]),
-                "u_offset": float(tpu.offset_sd[i]),
-                "pointwise_lower": float(b.pointwise_lower[i]),
-                "pointwise_upper": float(b.pointwise_upper[i]),
-                "simultaneous_lower": float(b.simultaneous_lower[i]),
-                "simultaneous_upper": float(b.simultaneous_upper[i]),
-            }
-        )
-    return to_csv(rows)
+    standard uncertainty and pointwise / simultaneous 95 % bands
+    (`ToolpathUncertainty.band_rows`)."""
+    return to_csv(tpu.band_rows(profile))
 
 
 def budget_csv(tpu, profile) -> str:
-    """Uncertainty budget (linearised): variance share of each source per
-    feature parameter and per vertex coordinate; shares sum to 1."""
-    rows = []
-    tot_d = tpu.deviation_budget["total"]
-    sources = [k for k in tpu.deviation_budget if k != "total"]
-    i = 0
-    for f in profile.features:
-        for name in f.param_names:
-            row = {"output": f"{f.id}.{name}", "u": float(np.sqrt(tot_d[i]))}
-            for s in sources:
-                row[s] = float(tpu.deviation_budget[s][i] / tot_d[i]) if tot_d[i] > 0 else 0.0
-            rows.append(row)
-            i += 1
-    tot_v = tpu.vertex_budget["total"]
-    for j in range(tot_v.shape[0]):
-        for k, axis in enumerate("xz"):
-            row = {"output": f"vertex{j}.{axis}", "u": float(np.sqrt(tot_v[j, k]))}
-            for s in sources:
-                row[s] = float(tpu.vertex_budget[s][j, k] / tot_v[j, k]) if tot_v[j, k] > 0 else 0.0
-            rows.append(row)
-    return to_csv(rows)
+    """Uncertainty budget (linearised), long: per feature parameter and vertex
+    coordinate, one row per source and a `total` row with the variance share and the
+    standard uncertainty in the row's `unit` (`ToolpathUncertainty.budget_rows`)."""
+    return to_csv(tpu.budget_rows(profile))
 
 
 def bounds_json(results: dict, profile) -> str:
@@ -215,5 +144,6 @@ def bounds_json(results: dict, profile) -> str:
 
 
 def posterior_csv(bayes) -> str:
-    """Posterior mean, sd and 95 % interval of every parameter of a Bayesian fit."""
+    """Posterior mean, sd and 95 % interval of every parameter of a Bayesian fit, in
+    the row's `unit` (`BayesProfileFit.rows`)."""
     return to_csv(bayes.rows())

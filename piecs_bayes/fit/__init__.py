@@ -29,6 +29,7 @@ from ._lsq_result import LsqResult as LsqResult
 from ._lsq_types import LsqArrays as LsqArrays
 from ._lsq_types import Status as Status
 from ._measurement import SOURCE_EFFECTS as SOURCE_EFFECTS
+from ._measurement import SOURCE_UNITS as SOURCE_UNITS
 from ._measurement import probe_residuals as probe_residuals
 from ._posterior import Posterior as Posterior
 from ._priors import HalfNormal as HalfNormal

@@ -455,19 +455,21 @@ def fit_profiles_bayes(
     on_fail: str = "warn",
     moves: str | None = "de",
     file: str | None = None,
+    lines=None,
 ):
     """[`fit_profile_bayes`][] for many parts: parts with the same pattern of
     triggers (feature of each point, in order) share one compiled log posterior
     and are sampled together by [`sample_posteriors`][].
 
     **Arguments:** `part_ids`, `feature_ids`, `machine_points` (and `approach`)
-    per trigger, as in `fit_profile_bayes`; `starts`: `{part: {feature: deviation}}`
+    (and `lines`) per trigger, as in `fit_profile_bayes`; `starts`: `{part: {feature: deviation}}`
     (e.g. `BatchFit.values`); the rest as `fit_profile_bayes`.
 
     **Returns:** `{part: BayesProfileFit}` in the order of first appearance.
     """
     from ..geometry import MachineTransform
     from ._bayes_profile import BayesProfileFit, profile_log_posterior
+    from ._inference_data import BayesData
 
     transform = MachineTransform() if transform is None else transform
     part_ids = np.asarray(part_ids).astype(str)
@@ -503,5 +505,14 @@ def fit_profiles_bayes(
             moves=moves,
         )  # fmt: skip
         for p, post in zip(parts, posts, strict=True):
-            out[p] = BayesProfileFit(profile, post, lay, likelihood, p)
+            r = rows_of[p]
+            data = BayesData(
+                feature_ids=feature_ids[r], machine_points=machine_points[r],
+                approach=None if approach is None else np.asarray(approach)[r],
+                lines=None if lines is None else np.asarray(lines)[r], sources=dict(sources),
+                ball_radius=float(ball_radius), transform=transform, sigma=float(sigma),
+                nu=float(nu), file=file, sampler="piecs_bayes lockstep ensembles",
+                moves=check_moves(moves),
+            )  # fmt: skip
+            out[p] = BayesProfileFit(profile, post, lay, likelihood, p, data)
     return {p: out[p] for p in order}

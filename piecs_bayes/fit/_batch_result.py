@@ -311,7 +311,8 @@ class BatchFit:
         )
 
     def rows(self) -> list[dict]:
-        """One row per part, feature and parameter (for CSV / DataFrames)."""
+        """One row per part, feature and parameter (for CSV / DataFrames), in the
+        columns of fit.csv: `value`, `std_error` in `unit` (mm, or rad)."""
         out = []
         for fid in self.feature_ids:
             f = self.profile[fid]
@@ -327,12 +328,13 @@ class BatchFit:
                             "part": part,
                             "feature": fid,
                             "parameter": name,
+                            "unit": f.param_units[k],
                             "value": float(v[i, k]),
                             "std_error": float(se[i, k]),
                             "n_points": int(n[i]),
                             "n_outliers": int(no[i]),
-                            "residual_sd": float(sd[i]),
-                            "sigma": float(sig[i]),
+                            "residual_sd_mm": float(sd[i]),
+                            "sigma_mm": float(sig[i]),
                             "sigma_dof": float(sig_dof[i]),
                             "status": Status(int(st[i])).name,
                             "method": self.method,

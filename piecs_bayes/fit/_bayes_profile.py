@@ -22,15 +22,20 @@ started around the robust least-squares optimum.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..errors import InputError
 from ..geometry import MachineTransform, Profile
 from ._bayes import Posterior, gaussian_loglik, sample_posterior, student_t_loglik
-from ._measurement import SOURCE_EFFECTS, probe_residuals
+from ._inference_data import BayesData, inference_data, pointwise_over_draws, write_netcdf
+from ._measurement import SOURCE_EFFECTS, SOURCE_UNITS, probe_residuals
+from ._moves import check_moves
+from ._posterior import emcee_module, frozen
 from ._priors import prior_from_spec
 
 __all__ = ["BayesProfileFit", "profile_log_posterior", "fit_profile_bayes", "NUISANCE_SOURCES"]
@@ -97,7 +102,15 @@ def profile_log_posterior(
     tables). The function is cached per structure, so many parts of one study
     share one compiled log posterior.
     """
-    return _log_posterior(
+    m = _model(*_model_key(profile, feature_ids, sources, ball_radius, transform, sigma,
+                           likelihood, nu, with_approach, file))  # fmt: skip
+    return m.log_prob, m.layout, m.priors
+
+
+def _model_key(profile, feature_ids, sources, ball_radius, transform, sigma, likelihood, nu,
+               with_approach, file) -> tuple:  # fmt: skip
+    """`_model`'s hashable arguments."""
+    return (
         profile,
         tuple(np.asarray(feature_ids).astype(str).tolist()),
         _freeze(sources),
@@ -111,8 +124,20 @@ def profile_log_posterior(
     )
 
 
+@dataclass(frozen=True)
+class _Model:
+    """One profile model: its log posterior, its pointwise log likelihood (one value
+    per probe point, in the order of `feature_ids`), where each parameter sits and
+    the priors of the sources."""
+
+    log_prob: Callable
+    pointwise: Callable
+    layout: _Layout
+    priors: dict
+
+
 @functools.lru_cache(maxsize=32)
-def _log_posterior(
+def _model(
     profile,
     feature_ids,
     frozen_sources,
@@ -123,7 +148,7 @@ def _log_posterior(
     nu,
     with_approach,
     file,
-):
+) -> _Model:
     sources = {k: dict(v) for k, v in frozen_sources}
     if likelihood not in ("gaussian", "student_t"):
         raise InputError(
@@ -136,34 +161,45 @@ def _log_posterior(
     lay = _layout(profile, measured, sources)
     groups = [(f, sl, jnp.asarray(np.flatnonzero(feature_ids == f.id))) for f, sl in lay.features]
     base = transform.as_array()
-
     pairs = [(f, idx) for f, _, idx in groups]
+    order = jnp.asarray(np.concatenate([np.asarray(idx) for _, _, idx in groups]))
 
-    def log_prob(theta, args):
-        points, appr = args
+    def log_prior(theta):
         lp = 0.0
-        deltas = {}
         for name, k in lay.nuisance:
-            deltas[name] = theta[k]
             lp = lp + priors[name].log_pdf(theta[k])
+        if lay.sigma_index is not None:
+            lp = lp + priors["repeatability"].log_pdf(theta[lay.sigma_index])
+        return lp
+
+    def residuals(theta, args):
+        """The residuals (in `groups` order) and the noise scale of `theta`."""
+        points, appr = args
         r = probe_residuals(
             pairs,
             [theta[sl] for _, sl, _ in groups],
             points,
-            deltas,
+            {name: theta[k] for name, k in lay.nuisance},
             transform=base,
             ball_radius=ball_radius,
             approach=appr if with_approach else None,
         )
-        if lay.sigma_index is not None:
-            s = theta[lay.sigma_index]
-            lp = lp + priors["repeatability"].log_pdf(s)
-        else:
-            s = sigma
-        ll = gaussian_loglik(r, s) if likelihood == "gaussian" else student_t_loglik(r, s, nu)
+        return r, (theta[lay.sigma_index] if lay.sigma_index is not None else sigma)
+
+    def loglik(r, s):
+        return gaussian_loglik(r, s) if likelihood == "gaussian" else student_t_loglik(r, s, nu)
+
+    def log_prob(theta, args):
+        lp = log_prior(theta)
+        ll = loglik(*residuals(theta, args))
         return jnp.where(jnp.isfinite(lp), lp + ll, -jnp.inf)
 
-    return log_prob, lay, priors
+    def pointwise(theta, args):
+        r, s = residuals(theta, args)
+        ll = jax.vmap(lambda ri: loglik(ri[None], s))(r)  # the fit's likelihood, per point
+        return jnp.full(feature_ids.size, jnp.nan, dtype=ll.dtype).at[order].set(ll)
+
+    return _Model(log_prob, pointwise, lay, priors)
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,10 +216,18 @@ class BayesProfileFit:
     layout: _Layout
     likelihood: str
     part: str | None = None
+    data: BayesData | None = None
 
     @property
     def names(self) -> tuple[str, ...]:
         return self.layout.names
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        """The unit of each of `names`: mm, rad or 1 (a ratio; `fit.SOURCE_UNITS`)."""
+        out = [u for f, _ in self.layout.features for u in f.param_units]
+        out += [SOURCE_UNITS[n] for n, _ in self.layout.nuisance]
+        return tuple(out + (["mm"] if self.layout.sigma_index is not None else []))
 
     def samples(self, feature_id: str) -> np.ndarray:
         for f, sl in self.layout.features:
@@ -223,20 +267,67 @@ class BayesProfileFit:
         return out
 
     def rows(self) -> list[dict]:
-        """One row per parameter: posterior mean, sd and 95 % interval."""
+        """One row per parameter (posterior.csv): posterior mean, sd and 95 % interval
+        in the row's `unit`."""
         s = np.asarray(self.posterior.samples)
         lo, hi = np.quantile(s, [0.025, 0.975], axis=0)
         return [
             {
                 "part": self.part or "",
                 "parameter": n,
+                "unit": unit,
                 "mean": float(s[:, i].mean()),
                 "sd": float(s[:, i].std(ddof=1)),
                 "q2.5": float(lo[i]),
                 "q97.5": float(hi[i]),
             }
-            for i, n in enumerate(self.names)
+            for i, (n, unit) in enumerate(zip(self.names, self.units, strict=True))
         ]
+
+    def log_likelihood(self) -> np.ndarray:
+        """Log likelihood of each probe point (in the order of `data`) at every kept
+        draw, `(chain, draw, point)` in the layout of `posterior.arviz_chains`: the
+        fit's own likelihood (Gaussian or Student-t) point by point, `jax.vmap`-ed
+        over draws; summed over points, the log likelihood the sampler saw. NaN for
+        a point of a feature outside the profile."""
+        m, d = self._model(), self._data()
+        chains = self.posterior.arviz_chains
+        k, n, dim = chains.shape
+        args = (
+            jnp.asarray(d.machine_points),
+            None if d.approach is None else jnp.asarray(d.approach),
+        )
+        ll = pointwise_over_draws(m.pointwise, chains.reshape(k * n, dim), args)
+        return ll.reshape(k, n, -1)
+
+    def to_arviz(self):
+        """ArviZ `InferenceData`: posterior (variables with feature dims and units),
+        sample_stats, observed_data, log_likelihood (for `az.loo`) and prior, with
+        the run's settings in attrs; the layout is `piecs_bayes.fit._inference_data`'s
+        (docs/formats.md, posterior.nc). `posterior.to_arviz()` is the plain form
+        (one scalar variable per parameter name)."""
+        return inference_data(self, self._data(), self.log_likelihood(), self._model().priors)
+
+    def to_netcdf(self, path) -> str:
+        """Write `to_arviz()` to a netCDF file (`arviz.from_netcdf` reads it). For a
+        file that appears whole or not at all, write through
+        `piecs_bayes.io.write_file_atomic(path, fit.to_netcdf)` (the CLI does)."""
+        return write_netcdf(self.to_arviz(), path)
+
+    def _data(self) -> BayesData:
+        if self.data is None:
+            raise InputError(
+                "this BayesProfileFit holds no data (made without fit_profile_bayes or "
+                "fit_profiles_bayes); use fit.posterior.to_arviz() for the draws alone"
+            )
+        return self.data
+
+    def _model(self) -> _Model:
+        d = self._data()
+        return _model(*_model_key(
+            self.profile, d.feature_ids, d.sources, d.ball_radius, d.transform, d.sigma,
+            self.likelihood, d.nu, d.approach is not None, d.file,
+        ))  # fmt: skip
 
     def __repr__(self) -> str:
         head = (
@@ -268,6 +359,7 @@ def fit_profile_bayes(
     moves: str | None = "de",
     part: str | None = None,
     file: str | None = None,
+    lines=None,
 ) -> BayesProfileFit:
     """Sample the posterior of a profile's deviations and nuisance parameters.
 
@@ -284,6 +376,7 @@ def fit_profile_bayes(
     - `nsteps`, `nwalkers`, `n_ensembles`, `seed`, `progress`, `on_fail`, `moves`:
       sampler settings (see :func:`sample_posterior`); differential-evolution
       moves by default (the nuisance parameters make the posterior correlated).
+    - `lines`: the file line of each trigger (kept for the fit's `to_arviz()`).
 
     **Returns:** a :class:`BayesProfileFit`.
     """
@@ -314,7 +407,16 @@ def fit_profile_bayes(
         on_fail=on_fail,
         moves=moves,
     )
-    return BayesProfileFit(profile, post, lay, likelihood, part)
+    data = BayesData(
+        feature_ids=frozen(np.asarray(feature_ids).astype(str)),
+        machine_points=frozen(np.asarray(machine_points, dtype=float)),
+        approach=None if approach is None else frozen(np.asarray(approach, dtype=float)),
+        lines=None if lines is None else frozen(np.asarray(lines)),
+        sources={k: dict(v) for k, v in sources.items()}, ball_radius=float(ball_radius),
+        transform=transform, sigma=float(sigma), nu=float(nu), file=file,
+        sampler=f"emcee {emcee_module().__version__}", moves=check_moves(moves),
+    )  # fmt: skip
+    return BayesProfileFit(profile, post, lay, likelihood, part, data)
 
 
 def _start(lay: _Layout, priors: dict, start: dict, start_cov: dict | None, sigma: float):

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 
 from ..geometry import machine_to_part
 
-__all__ = ["SOURCE_EFFECTS", "probe_residuals"]
+__all__ = ["SOURCE_EFFECTS", "SOURCE_UNITS", "probe_residuals"]
 
 #: Sources that act in the measurement model (``repeatability`` is the noise itself).
 SOURCE_EFFECTS = (
@@ -31,6 +31,19 @@ SOURCE_EFFECTS = (
     "rotation",
     "thermal",
 )
+#: Unit of each source's value (and of ``repeatability``, the probe sigma) in tables;
+#: "1": a ratio (an axis scale or expansion error, e.g. 1e-5 = 10 um/m).
+SOURCE_UNITS = {
+    "ball_radius": "mm",
+    "pretravel": "mm",
+    "x_centre": "mm",
+    "z_offset": "mm",
+    "scale_x": "1",
+    "scale_z": "1",
+    "rotation": "rad",
+    "thermal": "1",
+    "repeatability": "mm",
+}
 _TRANSFORM_INDEX = {"x_centre": 0, "z_offset": 1, "scale_x": 2, "scale_z": 3, "rotation": 4}
 
 

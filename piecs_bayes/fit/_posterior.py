@@ -145,23 +145,18 @@ class Posterior:
         numbers on exactly these chains."""
         return arviz_layout(self.ensemble_chains)
 
-    def to_arviz(self):
-        """ArviZ `InferenceData` (arviz 0.2x) whose own diagnostics are the package's.
+    @property
+    def arviz_log_prob(self) -> np.ndarray:
+        """Log posterior of each draw of `arviz_chains`, `(n_ensembles, nwalkers * steps)`."""
+        s = self.log_prob.shape[0]
+        lp = self.log_prob.reshape(s, self.n_ensembles, self.nwalkers).transpose(1, 0, 2)
+        return arviz_layout(lp)
 
-        The posterior group has one ArviZ *chain* per independent ensemble and
-        `draw` = the ensemble's walker trajectories one after the other
-        (`arviz_chains`); `arviz.ess(idata)` and `arviz.rhat(idata)` equal `ess`
-        and `rhat`. Walkers of one ensemble are coupled, so one chain per walker
-        (what `arviz.from_emcee` does) would make ArviZ's R-hat meaningless.
-        `sample_stats.lp` holds the log posterior; tau, the verdict and the run
-        settings are in the posterior's attrs.
-        """
-        az = import_arviz()
-        chains = self.arviz_chains
-        lp = arviz_layout(self._ensemble_log_prob())
-        post = {n: chains[:, :, j] for j, n in enumerate(self.names)}
-        idata = az.from_dict(posterior=post, sample_stats={"lp": lp})
-        attrs = {
+    def run_attrs(self) -> dict:
+        """The run's settings and diagnostics as netCDF-ready attributes (numbers,
+        strings, arrays): sampler, ensembles, walkers, steps, burn, thin, the
+        verdict, and per parameter (`parameter_names` order) R-hat, ESS and tau."""
+        return {
             "sampler": f"emcee {emcee_module().__version__} moves (piecs_bayes ensembles)",
             "chain": "one independent ensemble",
             "draw": "walker-major: walker w's kept step s is draw w * steps + s",
@@ -179,12 +174,26 @@ class Posterior:
             "wall_time_s": self.wall_time,
             "parameter_names": list(self.names),
         }
-        idata.posterior.attrs.update(attrs)
-        return idata
 
-    def _ensemble_log_prob(self) -> np.ndarray:
-        s = self.log_prob.shape[0]
-        return self.log_prob.reshape(s, self.n_ensembles, self.nwalkers).transpose(1, 0, 2)
+    def to_arviz(self):
+        """ArviZ `InferenceData` (arviz 0.2x) whose own diagnostics are the package's.
+
+        The posterior group has one ArviZ *chain* per independent ensemble and
+        `draw` = the ensemble's walker trajectories one after the other
+        (`arviz_chains`); `arviz.ess(idata)` and `arviz.rhat(idata)` equal `ess`
+        and `rhat`. Walkers of one ensemble are coupled, so one chain per walker
+        (what `arviz.from_emcee` does) would make ArviZ's R-hat meaningless.
+        `sample_stats.lp` holds the log posterior; tau, the verdict and the run
+        settings (`run_attrs`) are in the posterior's attrs. One scalar variable
+        per parameter name; a profile fit's `BayesProfileFit.to_arviz` gives the
+        full form (dims, units, observed data, log likelihood, prior).
+        """
+        az = import_arviz()
+        chains = self.arviz_chains
+        post = {n: chains[:, :, j] for j, n in enumerate(self.names)}
+        idata = az.from_dict(posterior=post, sample_stats={"lp": self.arviz_log_prob})
+        idata.posterior.attrs.update(self.run_attrs())
+        return idata
 
     def to_netcdf(self, path) -> str:
         """Write `to_arviz()` to a netCDF file; `arviz.from_netcdf` reads it. For a file

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import Profile
+from ..io import rows_to_dataframe
 from ._features import FeatureFit, fit_feature
 from ._sigma import DECLARED_DOF, ProbeSigma, pooled_residuals, probe_sigma
 
@@ -47,21 +48,24 @@ class ProfileFit:
         return {fid: f.covariance for fid, f in self.fits.items()}
 
     def rows(self) -> list[dict]:
-        """One row per fitted parameter (for CSV / DataFrames)."""
+        """One row per fitted parameter (fit.csv, `to_dataframe()`): `value` and
+        `std_error` in the row's `unit` (mm, or rad for a line's rotation)."""
         out = []
         for f in self.fits.values():
             se = f.std_errors if f.std_errors is not None else [float("nan")] * len(f.values)
-            for name, v, s in zip(f.param_names, f.values, se, strict=True):
+            units = f.feature.param_units
+            for name, unit, v, s in zip(f.param_names, units, f.values, se, strict=True):
                 out.append(
                     {
                         "part": self.part or "",
                         "feature": f.id,
                         "type": f.feature.kind,
                         "parameter": name,
+                        "unit": unit,
                         "value": float(v),
                         "std_error": float(s),
                         "n_points": f.n,
-                        "residual_sd": f.residual_sd,
+                        "residual_sd_mm": f.residual_sd,
                         "residual_dof": f.residual_dof,
                         **self._sigma_row(),
                         "n_outliers": len(f.outliers),
@@ -70,11 +74,46 @@ class ProfileFit:
                 )
         return out
 
+    def residual_rows(self) -> list[dict]:
+        """One row per probe point (residuals.csv): the ball centre, its residual, robust
+        weight, outlier flag, nearest nominal point and error vector (measured surface
+        point - nominal); part frame, mm, X as a radius."""
+        out = []
+        for f in self.fits.values():
+            outliers = {int(i) for i in f.outliers}
+            for i in range(f.n):
+                out.append(
+                    {
+                        "part": self.part or "",
+                        "feature": f.id,
+                        "line": int(f.lines[i]),
+                        "ball_x_radius_mm": float(f.points[i, 0]),
+                        "ball_z_mm": float(f.points[i, 1]),
+                        "residual_mm": float(f.residuals[i]),
+                        "weight": float(f.weights[i]),
+                        "outlier": int(i in outliers),
+                        "nominal_x_radius_mm": float(f.nominal_points[i, 0]),
+                        "nominal_z_mm": float(f.nominal_points[i, 1]),
+                        "error_x_radius_mm": float(f.error_vectors[i, 0]),
+                        "error_z_mm": float(f.error_vectors[i, 1]),
+                    }
+                )
+        return out
+
+    def to_dataframe(self, table: str = "parameters"):
+        """The fit as a `pandas.DataFrame`: `table="parameters"` (`rows()`, fit.csv)
+        or `"residuals"` (`residual_rows()`, residuals.csv); docs/formats.md has the
+        columns."""
+        tables = {"parameters": self.rows, "residuals": self.residual_rows}
+        if table not in tables:
+            raise ValueError(f"unknown table {table!r}; expected one of {', '.join(tables)}")
+        return rows_to_dataframe(tables[table]())
+
     def _sigma_row(self) -> dict:
         s = self.sigma
         if s is None:
-            return {"sigma": float("nan"), "sigma_source": "", "sigma_dof": float("nan")}
-        return {"sigma": s.value, "sigma_source": s.source, "sigma_dof": s.dof}
+            return {"sigma_mm": float("nan"), "sigma_source": "", "sigma_dof": float("nan")}
+        return {"sigma_mm": s.value, "sigma_source": s.source, "sigma_dof": s.dof}
 
     def __repr__(self) -> str:
         lines = [f"ProfileFit({self.method}, part={self.part!r})"]

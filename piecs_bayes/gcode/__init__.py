@@ -1,5 +1,6 @@
 """Part programs (G-code, lathe dialect): lossless lexing, modal state, tool tables,
-tool-nose compensation (G41/G42), the adjusted finish-cut program, and the rs274 bridge.
+tool-nose compensation (G41/G42), the adjusted finish-cut program (with its traceability
+comment block), the tool that cuts the finish pass, and the rs274 bridge.
 
 Builds on `piecs_bayes.geometry` (features of the profile) and `piecs_bayes.errors`;
 neither `geometry` nor `io` imports this package.
@@ -10,6 +11,10 @@ from ._adjust import BlockMap as BlockMap
 from ._adjust import ProgramAdjustment as ProgramAdjustment
 from ._adjust import adjust_program as adjust_program
 from ._adjust import map_blocks_to_profile as map_blocks_to_profile
+from ._header import comment_style as comment_style
+from ._header import comment_text as comment_text
+from ._header import diff_labels as diff_labels
+from ._header import with_comment_block as with_comment_block
 from ._lexer import GcodeText as GcodeText
 from ._lexer import SourceLine as SourceLine
 from ._lexer import Word as Word
@@ -21,6 +26,7 @@ from ._modal import CompSetting as CompSetting
 from ._modal import GcodeProgram as GcodeProgram
 from ._modal import LineState as LineState
 from ._modal import Motion as Motion
+from ._modal import ToolWord as ToolWord
 from ._modal import parse_gcode as parse_gcode
 from ._modal import read_gcode as read_gcode
 from ._nosecomp import NoseCompResult as NoseCompResult
@@ -33,6 +39,10 @@ from ._rs274 import CanonMove as CanonMove
 from ._rs274 import Rs274Result as Rs274Result
 from ._rs274 import rs274_path as rs274_path
 from ._rs274 import run_rs274 as run_rs274
+from ._toolcall import FinishCutTools as FinishCutTools
+from ._toolcall import ToolCall as ToolCall
+from ._toolcall import finish_cut_tools as finish_cut_tools
+from ._toolcall import tool_call as tool_call
 from ._tools import ToolEntry as ToolEntry
 from ._tools import parse_tool_table as parse_tool_table
 from ._tools import read_tool_table as read_tool_table

@@ -39,12 +39,14 @@ from __future__ import annotations
 import difflib
 import math
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import AnalysisError, InputError
 from ..geometry import Arc, Line, Profile
+from ._header import diff_labels, header_checked
 
 __all__ = [
     "BlockMap",
@@ -89,12 +91,14 @@ class BlockChange:
 @dataclass(frozen=True)
 class ProgramAdjustment:
     """The adjusted program ``text``, its unified ``diff`` against the original,
-    the block ``changes`` and the ``mapping`` used."""
+    the block ``changes`` and the ``mapping`` used (line numbers of the input
+    program); ``header_lines`` comment lines were inserted at the top of ``text``."""
 
     text: str
     diff: str
     changes: tuple[BlockChange, ...]
     mapping: BlockMap
+    header_lines: int = 0
 
     @property
     def max_shift_mm(self) -> float:
@@ -316,6 +320,8 @@ def adjust_program(
     tol_mm: float = 0.01,
     tool_table=None,
     nose_radius_mm: float | None = None,
+    header: Sequence[str] = (),
+    output_name: str | None = None,
 ) -> ProgramAdjustment:
     """Rewrite the finish-cut blocks of ``program`` to ``adjusted_profile``.
 
@@ -332,6 +338,12 @@ def adjust_program(
     - `tol_mm`: geometric matching tolerance.
     - `tool_table`, `nose_radius_mm`: to check the result for gouges with the
       nose radius (``nose_radius_mm`` stands in for G41/G42 tools).
+    - `header`: comment texts, one line each, put at the top of the result in the
+      program's comment syntax, after a ``%`` line and the O-number line (see
+      `gcode._header`); only comment lines are added, the motion stays the same.
+    - `output_name`: the adjusted program's path as the diff names it
+      (``+++ b/<output_name>``; default ``<stem>_adjusted<suffix>``); the input is
+      ``--- a/<program's path>``.
 
     **Returns:** a :class:`ProgramAdjustment`; write ``.text`` with
     :func:`~piecs_bayes.io.write_text_atomic` (``protect=[input]``).
@@ -352,12 +364,12 @@ def adjust_program(
     _check_shifts(moves, target, bmap, name, max_correction_mm)
     texts = _rewrite_blocks(program, target)
     new_source = program.source.with_line_texts(texts)
-    text = new_source.text
     try:
-        new_program = parse_gcode(text, name=program.name, **program.options)
+        new_program = parse_gcode(new_source.text, name=program.name, **program.options)
     except InputError as exc:
         raise AnalysisError(f"the adjusted program is not valid: {exc}") from None
     _check(program, new_program, target, bmap, name, tool_table, nose_radius_mm)
+    text, n_header = header_checked(new_program, header)
     changes: list[BlockChange] = []
     for ln in sorted(texts):
         old_m, new_m = moves[ln], new_program.moves_at(ln)[-1]
@@ -370,15 +382,16 @@ def adjust_program(
                 math.dist(old_m.end, new_m.end),
             )
         )
+    old_label, new_label = diff_labels(program.name, output_name)
     diff = "".join(
         difflib.unified_diff(
             program.text.splitlines(keepends=True),
             text.splitlines(keepends=True),
-            fromfile=name,
-            tofile=f"{name} (adjusted)",
+            fromfile=old_label,
+            tofile=new_label,
         )
     )
-    return ProgramAdjustment(text, diff, tuple(changes), bmap)
+    return ProgramAdjustment(text, diff, tuple(changes), bmap, n_header)
 
 
 def _targets(program, moves, nominal_profile, adjusted_profile, bmap, tol_mm):

@@ -42,6 +42,7 @@ from ._lexer import GcodeText, SourceLine, lex_gcode, read_text_lossless
 
 __all__ = [
     "CompSetting",
+    "ToolWord",
     "Motion",
     "CompEvent",
     "LineState",
@@ -105,6 +106,24 @@ class CompSetting:
     tool: int | None = None
     diameter_mm: float | None = None
     orientation: int | None = None
+
+
+@dataclass(frozen=True)
+class ToolWord:
+    """The T word that put the cutting tool in place, as written.
+
+    ``text`` is the word (``"T0202"``), ``value`` its number, ``line`` its line.
+    ``by`` says what made it the cutting tool: ``"M6"`` (a tool change, LinuxCNC
+    style: the T word only selects) or ``"T"`` (a program without any M6, turret
+    style: the T word itself indexes the turret and applies its offsets, as on
+    Fanuc-style lathes). What the number means is read by
+    :func:`~piecs_bayes.gcode.tool_call`.
+    """
+
+    text: str
+    value: int
+    line: int
+    by: str
 
 
 @dataclass(frozen=True)
@@ -179,6 +198,8 @@ class LineState:
     arc_absolute: bool
     motion: str | None
     comp: CompSetting | None
+    tool: ToolWord | None = None
+    """The T word of the cutting tool (None before any)."""
 
 
 @dataclass(frozen=True)
@@ -233,6 +254,12 @@ class _Reader:
         self.just_off = False
         self.selected: int | None = None
         self.tool: int | None = None
+        self.t_selected: ToolWord | None = None
+        self.t_cutting: ToolWord | None = None
+        # a program without M6 changes tools with the T word alone (turret lathes)
+        self.turret = not any(
+            w.letter == "M" and w.code == "M6" for ln in src.lines for w in ln.words
+        )
         self.moves: list[Motion] = []
         self.events: list[Motion | CompEvent] = []
         self.states: list[LineState] = []
@@ -256,6 +283,7 @@ class _Reader:
                     self.arc_absolute,
                     self.motion,
                     self.comp,
+                    self.t_cutting,
                 )
             )
         options = {"units": self.units0, "diameter_mode": self.diameter0, "start": self.start0}
@@ -308,12 +336,17 @@ class _Reader:
             if w["T"] < 0 or w["T"] != int(w["T"]):
                 raise self.err(line, "T must be a whole number >= 0")
             self.selected = int(w["T"])
+            by = "T" if self.turret else "M6"
+            self.t_selected = ToolWord(f"T{line.word('T').text}", self.selected, line.number, by)
+            if self.turret:
+                self.t_cutting = self.t_selected
         if "toolchange" in mcodes:
             if self.comp is not None:
                 raise self.err(line, "cannot change tools with compensation on (G40 first)")
             if self.selected is None:
                 raise self.err(line, "M6 with no tool selected (T word)")
             self.tool = self.selected
+            self.t_cutting = self.t_selected
         if "dwell" in gcodes and "P" not in w:
             raise self.err(line, "G4 needs a P word (seconds)")
         if "P" in w and "dwell" not in gcodes and gcodes.get("path") != "G64":

@@ -5,6 +5,12 @@ from ._curves import Feature as Feature
 from ._curves import Line as Line
 from ._curves import left_normal as left_normal
 from ._curves import rotate as rotate
+from ._drawn import TOLERANCE_ON as TOLERANCE_ON
+from ._drawn import drawn_limits as drawn_limits
+from ._drawn import drawn_scale as drawn_scale
+from ._drawn import feature_form as feature_form
+from ._drawn import normal_limits as normal_limits
+from ._drawn import tolerance_choices as tolerance_choices
 from ._intersect import intersect_circle_circle as intersect_circle_circle
 from ._intersect import intersect_line_circle as intersect_line_circle
 from ._intersect import intersect_line_line as intersect_line_line

@@ -12,7 +12,8 @@ be a static argument to ``jax.jit``); its deviation is a small float64 vector:
 - arc: ``(dcx, dcz, dr)``: centre shift and radius change.
 
 Zero deviation means "as drawn". Signed distances are positive outside the
-material (along the outward normal).
+material (along the outward normal). ``tolerance`` limits the normal deviation (mm);
+``tolerance_on`` says on which coordinate the drawing gives it (`_drawn`).
 """
 
 from __future__ import annotations
@@ -57,9 +58,11 @@ class Line:
     p1: tuple[float, float]
     side: int = -1
     tolerance: tuple[float, float] = (-0.01, 0.01)
+    tolerance_on: str = "normal"
 
     kind: ClassVar[str] = "line"
     param_names: ClassVar[tuple[str, ...]] = ("offset", "rotation")
+    param_units: ClassVar[tuple[str, ...]] = ("mm", "rad")
     nparams: ClassVar[int] = 2
 
     def __post_init__(self):
@@ -139,9 +142,11 @@ class Arc:
     ccw: bool
     side: int = -1
     tolerance: tuple[float, float] = (-0.01, 0.01)
+    tolerance_on: str = "normal"
 
     kind: ClassVar[str] = "arc"
     param_names: ClassVar[tuple[str, ...]] = ("center_x", "center_z", "radius")
+    param_units: ClassVar[tuple[str, ...]] = ("mm", "mm", "mm")  # center_x: a radius (X)
     nparams: ClassVar[int] = 3
 
     def __post_init__(self):

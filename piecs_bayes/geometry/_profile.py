@@ -14,11 +14,12 @@ tangents: ``"tangent"`` where the direction turns by less than
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ._curves import Arc, Feature, Line
+from ._drawn import normal_limits
 
 __all__ = ["Profile", "profile_side", "ProfileError"]
 
@@ -141,10 +142,17 @@ class Profile:
 
 def make_feature(spec: dict, side: int) -> Feature:
     """Build a Line or Arc from a plain spec dict (``id``, ``p0``, ``p1``, optional
-    ``center``/``ccw``, ``tolerance``)."""
+    ``center``/``ccw``, ``tolerance``, ``tolerance_on``).
+
+    With ``tolerance_on`` the ``tolerance`` is as drawn on that coordinate and is
+    converted to limits of the normal deviation (`_drawn`); without it, it limits the
+    normal deviation. A coordinate that does not fit the feature's form raises
+    `ProfileError`.
+    """
     tol = tuple(spec.get("tolerance", (-0.01, 0.01)))
+    on = spec.get("tolerance_on", "normal")
     if spec.get("center") is not None:
-        return Arc(
+        feat: Feature = Arc(
             id=spec["id"],
             p0=tuple(spec["p0"]),
             p1=tuple(spec["p1"]),
@@ -152,5 +160,16 @@ def make_feature(spec: dict, side: int) -> Feature:
             ccw=bool(spec["ccw"]),
             side=side,
             tolerance=tol,
+            tolerance_on=on,
         )
-    return Line(id=spec["id"], p0=tuple(spec["p0"]), p1=tuple(spec["p1"]), side=side, tolerance=tol)
+    else:
+        feat = Line(
+            id=spec["id"], p0=tuple(spec["p0"]), p1=tuple(spec["p1"]), side=side,
+            tolerance=tol, tolerance_on=on,
+        )  # fmt: skip
+    if on == "normal":
+        return feat
+    try:
+        return replace(feat, tolerance=normal_limits(feat, tol))
+    except ValueError as exc:
+        raise ProfileError(str(exc), spec["id"]) from None

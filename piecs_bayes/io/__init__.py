@@ -4,10 +4,12 @@ and write files atomically, never over an input."""
 from ._atomic import write_bytes_atomic as write_bytes_atomic
 from ._atomic import write_file_atomic as write_file_atomic
 from ._atomic import write_text_atomic as write_text_atomic
+from ._frames import rows_to_dataframe as rows_to_dataframe
 from ._plausibility import PlausibilityWarning as PlausibilityWarning
 from ._plausibility import check_probe_data as check_probe_data
 from ._probe import ProbeData as ProbeData
 from ._probe import read_probe_csv as read_probe_csv
+from ._settings import APPLY_ROUTES as APPLY_ROUTES
 from ._settings import CompensationSettings as CompensationSettings
 from ._settings import FitSettings as FitSettings
 from ._settings import ProbeSpec as ProbeSpec

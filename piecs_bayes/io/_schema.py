@@ -22,7 +22,9 @@ __all__ = ["DIST_KEYS", "SECTIONS", "check_keys", "check_source", "nearest"]
 SECTIONS: dict[str, tuple[str, ...]] = {
     "study": ("name", "units", "probe_files", "part_program", "encoding"),
     "profile": ("kind", "x_mode", "tangent_tolerance_deg", "feature"),
-    "profile.feature": ("id", "type", "start", "end", "center", "direction", "tolerance"),
+    "profile.feature": (
+        "id", "type", "start", "end", "center", "direction", "tolerance", "tolerance_on",
+    ),
     "probe": (
         "ball_radius", "ball_radius_u", "repeatability", "repeatability_dof", "x_mode",
         "pretravel",
@@ -33,7 +35,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
         "method", "loss", "scale", "known_sigma", "min_points_line", "min_points_arc", "fix",
         "free_transform", "likelihood", "nu", "bayes_steps", "bayes_walkers", "bayes_ensembles",
     ),
-    "compensation": ("gain", "max_correction"),
+    "compensation": ("gain", "max_correction", "apply"),
     "program": ("nose_radius", "tool_table", "mapping", "tolerance"),
     "plausibility": ("max_distance", "max_outside", "duplicates"),
 }  # fmt: skip

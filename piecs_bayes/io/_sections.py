@@ -14,10 +14,19 @@ from types import MappingProxyType
 from typing import Any
 
 from ..errors import InputError
-from ..geometry import MachineTransform, Profile, ProfileError, make_feature, profile_side
+from ..geometry import (
+    TOLERANCE_ON,
+    MachineTransform,
+    Profile,
+    ProfileError,
+    feature_form,
+    make_feature,
+    profile_side,
+    tolerance_choices,
+)
 from ._reader import Reader
 from ._schema import check_source
-from ._settings import CompensationSettings, FitSettings, ProbeSpec, split_fix
+from ._settings import APPLY_ROUTES, CompensationSettings, FitSettings, ProbeSpec, split_fix
 
 __all__ = [
     "KNOWN_SOURCES",
@@ -65,7 +74,7 @@ def _check_arc(r: Reader, spec: dict, path: str, fid: str) -> None:
 
 
 def _tolerance(r: Reader, f: dict, path: str, fid: str, scale: float) -> tuple[float, float]:
-    """A feature's `tolerance = [lower, upper]` (default ±0.01), in mm."""
+    """A feature's `tolerance = [lower, upper]` as drawn (default ±0.01), in mm."""
     tol = f.get("tolerance", [-0.01, 0.01])
     if (
         not isinstance(tol, list)
@@ -81,6 +90,50 @@ def _tolerance(r: Reader, f: dict, path: str, fid: str, scale: float) -> tuple[f
             value=tol,
         )
     return (float(tol[0]) * scale, float(tol[1]) * scale)
+
+
+#: a feature's form in words, and what its tolerance is on when drawn
+_FORM_TEXT = {
+    "cylinder": ("a diameter (cylinder)", "on the diameter Ø, as drawn"),
+    "face": ("a face or shoulder", "on its axial position Z, as drawn"),
+    "taper": ("a taper", "along the surface normal, a profile tolerance"),
+    "arc": ("an arc", "along the surface normal, a profile tolerance"),
+}
+
+
+def _tolerance_on(r: Reader, f: dict, spec: dict, path: str, fid: str) -> str:
+    """A feature's `tolerance_on`: required, and one that fits the feature's form."""
+    form = feature_form(spec["p0"], spec["p1"], spec.get("center"))
+    choices = tolerance_choices(form)
+    words, meaning = _FORM_TEXT[form]
+    on = f.get("tolerance_on")
+    if on is None:
+        tol = f.get("tolerance", "(default [-0.01, 0.01])")
+        other = "".join(f'; "{c}" for a tolerance on the {c}' for c in choices[1:])
+        raise r.error(
+            f"{path}tolerance_on",
+            f"missing: {fid!r} is {words}; say what its tolerance {tol} limits: add the line "
+            f'tolerance_on = "{choices[0]}" to its [[profile.feature]] table (the tolerance '
+            f"is then {meaning}{other})",
+            feature=fid,
+        )
+    if on not in TOLERANCE_ON:
+        raise r.error(
+            f"{path}tolerance_on",
+            f"unknown value {on!r}; expected one of {', '.join(map(repr, TOLERANCE_ON))}",
+            feature=fid,
+            value=on,
+        )
+    if on not in choices:
+        raise r.error(
+            f"{path}tolerance_on",
+            f"{on!r} does not fit {fid!r}, {words}: write "
+            + " or ".join(f'tolerance_on = "{c}"' for c in choices)
+            + f" (the tolerance is then {meaning})",
+            feature=fid,
+            value=on,
+        )
+    return on
 
 
 def _feature(r: Reader, f, i: int, scale: float, xscale: float) -> dict:
@@ -140,9 +193,12 @@ def read_profile(r: Reader, tree: dict, scale: float) -> Profile:
     specs = _features(r, prof, scale, scale / 2 if x_mode == "diameter" else scale)
     try:
         side = profile_side(specs, internal=kind == "internal")
-        return Profile(tuple(make_feature(s, side) for s in specs), tangent_tol_deg=tangent_tol)
-    except ProfileError as exc:
+        Profile(tuple(make_feature(s, side) for s in specs), tangent_tol_deg=tangent_tol)
+    except ProfileError as exc:  # a chain that is not connected, before its tolerances
         raise InputError(str(exc), file=r.file, feature=exc.feature) from None
+    for i, (f, s) in enumerate(zip(prof["feature"], specs, strict=True)):
+        s["tolerance_on"] = _tolerance_on(r, f, s, f"profile.feature[{i}].", s["id"])
+    return Profile(tuple(make_feature(s, side) for s in specs), tangent_tol_deg=tangent_tol)
 
 
 def read_probe(r: Reader, tree: dict, scale: float, profile: Profile) -> ProbeSpec:
@@ -276,8 +332,10 @@ def read_fit(r: Reader, tree: dict, scale: float, profile: Profile) -> FitSettin
 
 
 def read_compensation(r: Reader, tree: dict, scale: float) -> CompensationSettings:
-    """`[compensation]`: the mirroring gain in [0, 1] and the largest correction."""
+    """`[compensation]`: the mirroring gain in [0, 1], the largest correction and
+    the route to the machine (`apply`, one of `APPLY_ROUTES`; `None` when not given)."""
     cp = r.table(tree, "compensation", "")
+    apply = r.choice(cp, "apply", "compensation.", APPLY_ROUTES, None) if "apply" in cp else None
     gain = r.number(cp, "gain", "compensation.", 1.0)
     if not 0.0 <= gain <= 1.0:
         raise r.error("compensation.gain", f"gain must be in [0, 1], got {gain!r}", value=gain)
@@ -285,6 +343,7 @@ def read_compensation(r: Reader, tree: dict, scale: float) -> CompensationSettin
         gain=gain,
         max_correction=r.number(cp, "max_correction", "compensation.", 0.2 / scale, positive=True)
         * scale,
+        apply=apply,
     )
 
 

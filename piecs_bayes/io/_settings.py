@@ -12,7 +12,19 @@ from types import MappingProxyType
 
 from ..geometry import MachineTransform, Profile
 
-__all__ = ["Study", "ProbeSpec", "FitSettings", "CompensationSettings", "ProgramSettings"]
+__all__ = [
+    "APPLY_ROUTES",
+    "Study",
+    "ProbeSpec",
+    "FitSettings",
+    "CompensationSettings",
+    "ProgramSettings",
+]
+
+#: the routes of a correction to the machine (`[compensation] apply`): the adjusted part
+#: program, the error specification (native + LinuxCNC comp tables), the tool-offset
+#: update, or nothing. One route only: two together apply the correction twice.
+APPLY_ROUTES = ("program", "errspec", "tool_offset", "none")
 
 
 @dataclass(frozen=True)
@@ -54,11 +66,15 @@ class FitSettings:
 
 @dataclass(frozen=True)
 class CompensationSettings:
-    """PIECS mirroring: ``gain`` in [0, 1] (1 = full mirroring) and the largest
-    correction (mm) of any vertex that the tool accepts."""
+    """PIECS mirroring: ``gain`` in [0, 1] (1 = full mirroring), the largest
+    correction (mm) of any vertex that the tool accepts, and ``apply``, the one
+    route of the correction to the machine (one of `APPLY_ROUTES`; ``None``: not
+    given, the jobs' default: ``"program"`` when the study names a part program,
+    else ``"errspec"``)."""
 
     gain: float = 1.0
     max_correction: float = 0.2
+    apply: str | None = None
 
 
 @dataclass(frozen=True)

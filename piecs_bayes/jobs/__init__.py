@@ -12,9 +12,13 @@ study and returns immutable data; `piecs_bayes.export` renders and writes it.
   uncertainty of every part (`path_uncertainty_batch`);
 - the coverage check of the uncertainty model on simulated parts
   (`coverage_check`) and the simulated data sets (`piecs_bayes.jobs.simulate`);
-- `options`: the one translation of a study into the layers' settings.
+- `options`: the one translation of a study into the layers' settings;
+- `apply_route`: the one route of the correction to the machine (program, error
+  spec or tool offset; never two).
 """
 
+from ._apply import APPLY_ROUTES as APPLY_ROUTES
+from ._apply import apply_route as apply_route
 from ._batch import CapabilityJob as CapabilityJob
 from ._batch import PathUncertaintyBatch as PathUncertaintyBatch
 from ._batch import capability_job as capability_job

@@ -27,6 +27,7 @@ from ..compensate import (
 )
 from ..errors import AnalysisError, InputError
 from ..fit import CHUNK_PARTS
+from ..io import rows_to_dataframe
 from ..uncertainty import feature_characteristic
 from ._batch import capability_values
 from ._fit import fit_study, load_probe_data
@@ -180,7 +181,18 @@ class CapabilityStudy:
         return {p: tuple(v) for p, v in out.items()}
 
     def summary_rows(self) -> list[dict]:
+        """One row per feature: limits, mean, sigmas, indices, stability, prediction."""
         return [f.summary() for f in self.features.values()]
+
+    def to_dataframe(self, table: str = "summary"):
+        """A `pandas.DataFrame` of `table`: "summary" (`summary_rows()`,
+        capability_summary.csv), "indices" (`index_rows()`, capability.csv) or "parts"
+        (`part_rows()`, capability_parts.csv); docs/formats.md has the columns."""
+        tables = {"summary": self.summary_rows, "indices": self.index_rows,
+                  "parts": self.part_rows}  # fmt: skip
+        if table not in tables:
+            raise ValueError(f"unknown table {table!r}; expected one of {', '.join(tables)}")
+        return rows_to_dataframe(tables[table]())
 
     def index_rows(self) -> list[dict]:
         """One row per feature and index (value, confidence and credible intervals)."""

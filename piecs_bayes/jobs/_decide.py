@@ -18,6 +18,8 @@ import numpy as np
 
 from ..compensate import Decision, DecisionSettings, decide
 from ..errors import InputError
+from ..geometry import drawn_scale
+from ..io import rows_to_dataframe
 from ..uncertainty import Characteristic, feature_characteristic
 from ._options import decision_settings, source_sds
 
@@ -83,6 +85,11 @@ class DecisionTable:
             out.append(row)
         return out
 
+    def to_dataframe(self):
+        """The table as a `pandas.DataFrame`, one row per feature: `rows()`, the
+        columns of decisions.csv (docs/formats.md)."""
+        return rows_to_dataframe(self.rows())
+
     def __repr__(self) -> str:
         verdicts = ", ".join(f"{d.feature} {d.verdict}" for d in self.decisions)
         return f"DecisionTable({self.study!r}, part {self.part or '-'}: {verdicts})"
@@ -124,6 +131,11 @@ def _estimate(feature, est):
     )
 
 
+def _drawn(fid: str, coordinates) -> dict:
+    coordinate, scale = (coordinates or {}).get(fid, ("normal", 1.0))
+    return {"coordinate": coordinate, "scale": float(scale)}
+
+
 def decide_features(
     estimates: Mapping[str, object],
     tolerances: Mapping[str, tuple[float, float]],
@@ -135,6 +147,7 @@ def decide_features(
     method: str = "",
     characteristic: str = "",
     unmeasured: Sequence[str] = (),
+    coordinates: Mapping[str, tuple[str, float]] | None = None,
 ) -> DecisionTable:
     """Decide per feature from estimates of its normal deviation (mm).
 
@@ -146,6 +159,9 @@ def decide_features(
     - `tolerances`: `(lower, upper)` limit deviations by feature id (mm).
     - `settings`, `run_index`: see `compensate.decide`.
     - `study`, `part`, `method`, `characteristic`, `unmeasured`: labels kept in the table.
+    - `coordinates`: by feature id, the coordinate its tolerance is drawn on and the
+      drawn deviation per unit of normal deviation (`geometry.drawn_scale`); default
+      `("normal", 1.0)`. They change how the decisions are stated, not the verdicts.
 
     **Returns:** a [`DecisionTable`][].
     """
@@ -170,6 +186,7 @@ def decide_features(
                 run_index=run_index,
                 feature=fid,
                 dof=dof,
+                **_drawn(fid, coordinates),
             )
         )
         chars.append(char)
@@ -232,4 +249,5 @@ def decide_study(
         method="posterior" if fit is None else fit.method,
         characteristic=at,
         unmeasured=tuple(fid for fid in study.profile.ids if fid not in ordered),
+        coordinates={f.id: (f.tolerance_on, drawn_scale(f)) for f in study.profile.features},
     )

@@ -29,6 +29,7 @@ __all__ = [
     "toolpath_uncertainty",
     "pooled_sigma",
     "adjust_study_program",
+    "program_header",
 ]
 
 
@@ -224,6 +225,7 @@ def bayes_study(
         start=fit.deviations,
         start_cov=fit.covariances,
         approach=use.approach,
+        lines=use.lines,
         part=fit.part,
         **bayes_options(
             study,
@@ -295,7 +297,15 @@ def _fit_loss(fit: ProfileFit) -> str:
     return "linear" if loss in ("lsq", "linear") else loss
 
 
-def adjust_study_program(study: Study, path: AdjustedPath, *, nose_radius=None, tool_table=None):
+def adjust_study_program(
+    study: Study,
+    path: AdjustedPath,
+    *,
+    nose_radius=None,
+    tool_table=None,
+    created: str | None = None,
+    output: str | None = None,
+):
     """Rewrite the study's part program for the adjusted tool path (PIECS option 2).
 
     Finish-cut blocks are mapped to profile features by geometry (or by the
@@ -304,6 +314,12 @@ def adjust_study_program(study: Study, path: AdjustedPath, *, nose_radius=None, 
     ``compensation.max_correction``, a block that cannot be mapped, or a
     result that gouges with the nose radius (``nose_radius`` mm, else the
     study's ``[program] nose_radius``, else the tool table's).
+
+    The result starts with a comment block that traces it (`program_header`): the
+    piecs_bayes version, the date (``created``, an ISO time; default now, UTC), the
+    study file's and each probe file's name and SHA-256, and the gain per feature.
+    The diff names the input ``a/<program path>`` and the output ``b/<output>``
+    (default ``<program stem>_adjusted<suffix>``, the name it is written under).
 
     **Returns:** a ``ProgramAdjustment`` (``.text``, ``.diff``, ``.changes``).
     """
@@ -326,4 +342,44 @@ def adjust_study_program(study: Study, path: AdjustedPath, *, nose_radius=None, 
         tol_mm=ps.tolerance,
         tool_table=table,
         nose_radius_mm=nose_radius if nose_radius is not None else ps.nose_radius,
+        header=program_header(study, path.gain, created=created),
+        output_name=output,
     )
+
+
+def program_header(study: Study, gain, *, created: str | None = None) -> tuple[str, ...]:
+    """The comment texts that trace an adjusted program to its run: version, date
+    (`created`, ISO; default now, UTC), the study and probe files with their SHA-256,
+    and the gain per feature (`gain`: a number or a mapping by feature id)."""
+    import datetime as _dt
+    import hashlib
+
+    from .. import __version__
+
+    if created is None:
+        created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+
+    def sha(f) -> str:
+        try:
+            return "sha256 " + hashlib.sha256(read_bytes(f, what="file")).hexdigest()
+        except InputError:  # a study made in memory: say so rather than refuse the program
+            return "not readable, no sha256"
+
+    lines = [
+        f"piecs_bayes {__version__} adjusted finish cut: only coordinate words changed",
+        f"date {created}",
+        f"study {Path(study.path).name} {sha(study.path)}",
+    ]
+    lines += [f"probe {Path(f).name} {sha(f)}" for f in study.probe_files]
+    gains = [
+        f"{fid} {float(gain.get(fid, 0.0) if hasattr(gain, 'get') else gain):g}"
+        for fid in study.profile.ids
+    ]
+    row: list[str] = []
+    for g in gains:  # a few per line: controllers limit a block's length
+        if row and len(", ".join([*row, g])) > 60:
+            lines.append("gains " + ", ".join(row))
+            row = []
+        row.append(g)
+    lines.append("gains " + ", ".join(row))
+    return tuple(lines)

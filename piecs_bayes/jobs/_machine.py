@@ -26,7 +26,7 @@ from ..uncertainty import (
 )
 from ._options import offset_settings, source_sds
 
-__all__ = ["error_spec", "tool_offsets"]
+__all__ = ["error_spec", "tool_offsets", "program_tool"]
 
 #: a line whose outward normal is within this of an axis is a diameter / a face
 _AXIAL = 1.0 - 1e-9
@@ -198,14 +198,20 @@ def tool_offsets(study, fit) -> tuple[ToolOffsetUpdate, tuple[str, ...]]:
       finish cut uses G41/G42 nose-radius compensation).
 
     Null band, feedback gain and upper limit come from `[offsets]`.
+
+    **The tool** is the one that cuts the finish pass (`program_tool`): with a part
+    program, the T word in force on its finish-cut blocks (`T0202`: tool 2, wear
+    offset 2), and `[offsets] tool`, when given, must match it; without a program,
+    `[offsets] tool` (default 1). The first note says where the number came from.
     """
     cfg = study.offsets
     st = offset_settings(study)
     x_mode = cfg.get("x_mode", "diameter")
-    tool = int(cfg.get("tool", 1))
+    notes: list[str] = []
+    tool, offset, source = program_tool(study, notes)
+    notes.insert(0, f"tool {tool}, wear offset {offset}: from {source}")
     sds = source_sds(study)
     fitted = {f.id: f for f in fit}
-    notes: list[str] = []
 
     def mids(key, kind):
         ids = _pick(study, fitted, key, kind, notes)
@@ -228,6 +234,8 @@ def tool_offsets(study, fit) -> tuple[ToolOffsetUpdate, tuple[str, ...]]:
             u_r=0.0 if u_r is None else u_r,
             settings=st,
             x_mode=x_mode,
+            offset=offset,
+            source=source,
         )
 
     if x_err is None and z_err is None and r_err is None:
@@ -246,6 +254,115 @@ def tool_offsets(study, fit) -> tuple[ToolOffsetUpdate, tuple[str, ...]]:
             "(assumes G41/G42 nose-radius compensation in the finish cut)"
         )
     return upd, tuple(notes)
+
+
+def program_tool(study, notes: list | None = None) -> tuple[int, int, str]:
+    """`(tool, wear offset, where from)` of the tool that cuts the study's finish pass.
+
+    - With a part program: the T word in force on the finish-cut blocks (those mapped
+      to the profile, `gcode.finish_cut_tools`; `gcode.tool_call` reads `Tttoo`,
+      `T202`, `T2` and LinuxCNC's `T2 M6`). `[offsets] tool`, when given, must be that
+      tool (`InputError` naming the study, the program's T word, its line and both
+      numbers); several tools on the finish blocks need `[offsets] tool` to choose.
+      A program without a T word before its finish cut falls back to `[offsets] tool`.
+    - Without a program: `[offsets] tool`, default 1.
+
+    `notes` (a list) receives what the caller should know (an unmapped program, finish
+    blocks cut before any T word).
+    """
+    notes = [] if notes is None else notes
+    named = study.offsets.get("tool")
+    fallback = int(named) if named is not None else 1
+    own = (
+        f"[offsets] tool = {fallback} in {study.path}"
+        if named is not None
+        else "the default [offsets] tool = 1"
+    )
+    if study.program is None:
+        return fallback, fallback, f"{own} (the study names no part program)"
+    from ..gcode import finish_cut_tools, read_gcode
+
+    prog = str(study.program)
+    ps = study.program_settings
+    found = finish_cut_tools(
+        read_gcode(study.program),
+        study.profile,
+        tol_mm=ps.tolerance,
+        mapping=dict(ps.mapping) or None,
+    )
+    if not found.mapped:
+        notes.append(
+            f"tool: the finish-cut blocks of {prog} do not map to the profile "
+            f"({found.why}); the tool is read from its compensated (or feed) moves"
+        )
+    if found.untooled and found.calls:
+        notes.append(f"tool: lines {_ranges(found.untooled)} of {prog} cut before any T word")
+    if not found.calls:
+        return fallback, fallback, f"{own} ({prog} calls no tool before its finish cut)"
+    call = _choose_call(study, found.calls, named, prog)
+    if call.offset < 1:
+        raise InputError(
+            f"the finish cut runs with its wear offset cancelled ({call.word}: offset 00); "
+            "a wear-offset update would not act on it",
+            file=prog,
+            line=call.line,
+            value=call.word,
+        )
+    blocks = _ranges(call.blocks)
+    how = "named by [offsets] tool, " if named is not None else ""
+    return (
+        call.tool,
+        call.offset,
+        f"the T word {call.word} on line {call.line} of {prog} ({how}in force on the "
+        f"finish-cut lines {blocks})",
+    )
+
+
+def _choose_call(study, calls, named, prog):
+    """The one tool call on the finish blocks, or the one `[offsets] tool` names."""
+    listed = ", ".join(
+        f"{c.word} (line {c.line}: tool {c.tool}, wear offset {c.offset})" for c in calls
+    )
+    if named is None:
+        if len(calls) > 1:
+            raise InputError(
+                f"several tools cut the finish-cut blocks of {prog}: {listed}; name the one "
+                f"to update with [offsets] tool",
+                file=str(study.path),
+            )
+        return calls[0]
+    match = [c for c in calls if c.tool == named]
+    if len(match) == 1:
+        return match[0]
+    if not match:
+        c = calls[0]
+        raise InputError(
+            f"[offsets] tool = {named} in {study.path} does not match the part program: "
+            f"its finish cut is made with tool {c.tool} ({c.word}, wear offset {c.offset})"
+            + (f"; the finish-cut tools are {listed}" if len(calls) > 1 else ""),
+            file=prog,
+            line=c.line,
+            value=named,
+        )
+    raise InputError(
+        f"tool {named} cuts the finish-cut blocks of {prog} with several wear offsets: "
+        f"{listed}; one update cannot serve them all",
+        file=str(study.path),
+    )
+
+
+def _ranges(lines) -> str:
+    """Line numbers as ranges: 7-13, 20."""
+    out, lines = [], sorted(lines)
+    start = prev = lines[0]
+    for ln in [*lines[1:], None]:
+        if ln is not None and ln == prev + 1:
+            prev = ln
+            continue
+        out.append(f"{start}-{prev}" if prev > start else str(start))
+        if ln is not None:
+            start = prev = ln
+    return ", ".join(out)
 
 
 def _pick(study, fitted, key: str, kind: str, notes: list) -> list[str]:

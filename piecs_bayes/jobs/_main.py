@@ -13,6 +13,13 @@ One call composes the public API in the order an engineer works:
 7. the **error specification** and the **tool-offset update**;
 8. a **capability study** when the probe data hold several parts (at least 3).
 
+Steps 6 and 7 are three routes of one correction to the machine; the results
+name the one to load (`JobResults.apply`, see `apply_route`).
+
+With `progress`, every step that can take more than a second or two says so when
+it starts (and the sampler shows its bars); the last line says the job finished,
+not "done": a caller that goes on writing files says that at its own end.
+
 Every step after the robust fit is optional (keyword switches). A step that
 cannot give an answer (an `AnalysisError` or `InputError` of that step only,
 e.g. a program block that maps to no feature) does not stop the job: the
@@ -41,6 +48,7 @@ from types import MappingProxyType
 from ..errors import AnalysisError, InputError, PiecsError
 from ..io import load_study
 from ..uncertainty import normal_deviation_draws
+from ._apply import apply_route
 from ._capability import capability_study
 from ._decide import decide_study
 from ._fit import (
@@ -98,6 +106,7 @@ class _Run:
     study: object
     probe: object
     say: _Progress
+    t0: float = 0.0
     fit: object = None
     gains: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
@@ -132,6 +141,7 @@ def run_job(
     capability: bool | str = "auto",
     capability_files: Sequence | None = None,
     progress: bool | Callable[[str], None] = False,
+    apply: str | None = None,
 ) -> JobResults:
     """Run the main job on one study (one part) and return the results bundle.
 
@@ -159,12 +169,17 @@ def run_job(
       least 3 parts), `True` or `False`.
     - `progress`: `True` prints timed progress lines to stderr and shows the
       sampler's progress bar; a callable receives the lines; `False` is silent.
+    - `apply`: the route of the correction to the machine (`"program"`, `"errspec"`,
+      `"tool_offset"`, `"none"`; default: the study's `[compensation] apply`, else
+      `"program"` when it names a part program, else `"errspec"`).
 
     **Returns:** a [`JobResults`][].
     """
     created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     run = _read(study, _Progress(progress))
+    run.out["apply"] = route = apply_route(run.study, apply)
     part, part_note = _choose_part(run, part)
+    run.say(f"fitting {len(run.study.profile)} features")
     with run.timed("fit"):
         run.fit = fit_study(run.study, run.probe, method=method, part=part)
     run.say(f"fitted {len(run.fit.fits)} features ({run.fit.method}, part {run.fit.part})")
@@ -173,10 +188,10 @@ def run_job(
     _step_decisions(run, decisions)
     _step_path(run, uncertainty)
     nose_radius, tool_table = _nose_radius_and_tools(run.study, nose_radius, tool_table)
-    _step_program(run, program, nose_radius, tool_table)
+    _step_program(run, program, nose_radius, tool_table, created)
     _step_errspec(run, errspec)
     _step_capability(run, capability, capability_files, method, seed)
-    run.say("done")
+    run.say(f"main job finished in {time.perf_counter() - run.t0:.1f} s; route: {route[0]}")
     return _results(run, seed, nose_radius, tool_table, capability_files, created, part_note)
 
 
@@ -185,7 +200,7 @@ def _read(study, say: _Progress) -> _Run:
     if not hasattr(study, "profile"):
         study = load_study(study)
     probe = load_probe_data(study)
-    run = _Run(study=study, probe=probe, say=say)
+    run = _Run(study=study, probe=probe, say=say, t0=t0)
     run.timings["read"] = time.perf_counter() - t0
     say(f"read {study!r}: {len(probe)} probe points, {len(probe.parts)} part(s)")
     return run
@@ -210,7 +225,11 @@ def _step_bayes(run: _Run, bayes: bool, nsteps, seed) -> None:
     if not bayes:
         run.skipped.append("bayes")
         return
-    run.say("sampling the posterior (emcee)")
+    steps = run.study.fit.bayes_steps if nsteps is None else nsteps
+    run.say(
+        f"sampling the posterior (emcee, {run.study.fit.bayes_ensembles} ensembles x {steps} "
+        "steps), then its diagnostics (tau, R-hat, ESS: a few seconds after the last bar)"
+    )
     fit = None
     with run.timed("bayes"), warnings.catch_warnings(record=True) as ws:
         warnings.simplefilter("always")
@@ -284,6 +303,8 @@ def _step_path(run: _Run, uncertainty: bool) -> None:
         run.unavailable["uncertainty"] = "no adjusted tool path"
         return
     unc = None
+    mc = " and Monte Carlo" if run.out.get("bayes") is not None else ""
+    run.say(f"tool-path uncertainty: linearised (GUM){mc} propagation")
     with run.timed("uncertainty"):
         try:
             unc = toolpath_uncertainty(
@@ -310,7 +331,7 @@ def _nose_radius_and_tools(study, nose_radius, tool_table):
     return nose_radius, tool_table
 
 
-def _step_program(run: _Run, program: bool, nose_radius, tool_table) -> None:
+def _step_program(run: _Run, program: bool, nose_radius, tool_table, created) -> None:
     """6. The adjusted part program, when the study names one."""
     path = run.out.get("path")
     if program and run.study.program is None:
@@ -324,7 +345,11 @@ def _step_program(run: _Run, program: bool, nose_radius, tool_table) -> None:
         with run.timed("program"):
             try:
                 adjustment = adjust_study_program(
-                    run.study, path, nose_radius=nose_radius, tool_table=tool_table
+                    run.study,
+                    path,
+                    nose_radius=nose_radius,
+                    tool_table=tool_table,
+                    created=created,
                 )
             except PiecsError as exc:
                 run.unavailable["program"] = str(exc)
@@ -413,6 +438,7 @@ def _settings(run: _Run, seed, nose_radius) -> dict:
         "max_correction_mm": study.compensation.max_correction,
         "nose_radius_mm": nose_radius,
         "decision_characteristic": None if table is None else table.characteristic,
+        "apply": run.out["apply"][0],
         "command": " ".join(sys.argv) if sys.argv and sys.argv[0] else "",
     }
 
@@ -444,6 +470,8 @@ def _results(run: _Run, seed, nose_radius, tool_table, capability_files, created
         created=created,
         part_note=part_note,
         warnings=tuple(run.caught),
+        apply=out["apply"][0],
+        apply_why=out["apply"][1],
     )
 
 

@@ -87,6 +87,9 @@ class JobResults:
       be done; `skipped`: steps switched off.
     - `inputs`, `versions`, `settings`, `timings` (s per step), `created` (ISO time),
       `warnings`: what a reproduction needs.
+    - `apply`: the one route of the correction to the machine (`"program"`,
+      `"errspec"`, `"tool_offset"` or `"none"`; see `apply_route`), `apply_why` why
+      it was chosen. The other routes' data are results too, never to be combined.
     """
 
     study: object
@@ -113,6 +116,8 @@ class JobResults:
     created: str = ""
     warnings: tuple[str, ...] = ()
     part_note: str = ""
+    apply: str | None = None
+    apply_why: str = ""
 
     @property
     def converged(self) -> bool | None:
@@ -132,4 +137,6 @@ class JobResults:
                 )
         for step, why in self.unavailable.items():
             lines.append(f"  {step}: unavailable: {why}")
+        if self.apply is not None:
+            lines.append(f"  apply: {self.apply} ({self.apply_why})")
         return "\n".join(lines)

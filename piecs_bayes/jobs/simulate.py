@@ -28,6 +28,7 @@ from ..geometry import (
     Line,
     MachineTransform,
     Profile,
+    drawn_limits,
     make_feature,
     part_to_machine,
     profile_side,
@@ -59,23 +60,24 @@ class ProcessErrors:
 
 
 # The demo shaft (radius X, mm): end face, D24, taper to D30, D30, R3 fillet,
-# shoulder face, D44. Tolerances are limit deviations along the outward normal.
+# shoulder face, D44. Tolerances as drawn: diameters on the Ø, faces on Z, the taper
+# and the fillet along the normal (`geometry.drawn_scale`).
 DEMO_FEATURES = [
-    dict(id="face_end", p0=(4.0, 0.0), p1=(12.0, 0.0), tolerance=(-0.05, 0.05)),
-    dict(id="dia_24", p0=(12.0, 0.0), p1=(12.0, -30.0), tolerance=(-0.010, 0.010)),
-    dict(id="taper", p0=(12.0, -30.0), p1=(15.0, -45.0), tolerance=(-0.020, 0.020)),
-    dict(id="dia_30", p0=(15.0, -45.0), p1=(15.0, -57.0), tolerance=(-0.010, 0.010)),
-    dict(
-        id="fillet",
-        p0=(15.0, -57.0),
-        p1=(18.0, -60.0),
-        center=(18.0, -57.0),
-        ccw=False,
-        tolerance=(-0.05, 0.05),
-    ),
-    dict(id="shoulder", p0=(18.0, -60.0), p1=(22.0, -60.0), tolerance=(-0.03, 0.03)),
-    dict(id="dia_44", p0=(22.0, -60.0), p1=(22.0, -90.0), tolerance=(-0.015, 0.015)),
-]
+    dict(id="face_end", p0=(4.0, 0.0), p1=(12.0, 0.0),
+         tolerance=(-0.05, 0.05), tolerance_on="length"),
+    dict(id="dia_24", p0=(12.0, 0.0), p1=(12.0, -30.0),
+         tolerance=(-0.020, 0.020), tolerance_on="diameter"),
+    dict(id="taper", p0=(12.0, -30.0), p1=(15.0, -45.0),
+         tolerance=(-0.020, 0.020), tolerance_on="normal"),
+    dict(id="dia_30", p0=(15.0, -45.0), p1=(15.0, -57.0),
+         tolerance=(-0.020, 0.020), tolerance_on="diameter"),
+    dict(id="fillet", p0=(15.0, -57.0), p1=(18.0, -60.0), center=(18.0, -57.0), ccw=False,
+         tolerance=(-0.05, 0.05), tolerance_on="normal"),
+    dict(id="shoulder", p0=(18.0, -60.0), p1=(22.0, -60.0),
+         tolerance=(-0.03, 0.03), tolerance_on="length"),
+    dict(id="dia_44", p0=(22.0, -60.0), p1=(22.0, -90.0),
+         tolerance=(-0.030, 0.030), tolerance_on="diameter"),
+]  # fmt: skip
 
 
 def demo_profile() -> Profile:
@@ -318,7 +320,8 @@ def study_toml_text(
         if isinstance(f, Arc):
             out.append(f"center = {_toml_point(f.center, 2)}")
             out.append(f'direction = "{"ccw" if f.ccw else "cw"}"')
-        out.append(f"tolerance = [{f.tolerance[0]:.4f}, {f.tolerance[1]:.4f}]")
+        lo, hi = drawn_limits(f)
+        out += [f"tolerance = [{lo:.4f}, {hi:.4f}]", f'tolerance_on = "{f.tolerance_on}"']
     out += [
         "",
         "[probe]",

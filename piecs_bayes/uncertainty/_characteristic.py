@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import AnalysisError, InputError
 from ..fit import arc_distance, effective_dof, geometry_args, line_distance
-from ..geometry import Line
+from ..geometry import Line, drawn_scale
 
 __all__ = [
     "AT_FRACTION",
@@ -162,6 +162,10 @@ class Characteristic:
     decision needs (a posterior can replace them); `at` says where: `"start"`,
     `"mid"`, `"end"` or `"t=0.25"` (fraction of the nominal feature), `point` and
     `normal` the nominal point and outward normal (part frame, radius X).
+    `tolerance` limits the normal deviation; `coordinate` is what the drawing
+    tolerances (`"diameter"`, `"radius"`, `"length"` or `"normal"`) and `scale` the
+    drawn deviation per unit of normal deviation (`geometry.drawn_scale`):
+    `drawn_mean`, `drawn_sd` and `drawn_tolerance` are the same numbers as drawn.
     """
 
     feature: str
@@ -175,10 +179,25 @@ class Characteristic:
     tolerance: tuple[float, float]
     n_points: int | None = None
     dof_fit: float = math.inf
+    coordinate: str = "normal"
+    scale: float = 1.0
 
     @property
     def sd(self) -> float:
         return math.hypot(self.u_fit, self.u_systematic)
+
+    @property
+    def drawn_mean(self) -> float:
+        return self.scale * self.mean
+
+    @property
+    def drawn_sd(self) -> float:
+        return abs(self.scale) * self.sd
+
+    @property
+    def drawn_tolerance(self) -> tuple[float, float]:
+        lo, hi = sorted((self.scale * self.tolerance[0], self.scale * self.tolerance[1]))
+        return lo, hi
 
     @property
     def dof(self) -> float:
@@ -240,6 +259,8 @@ def feature_characteristic(
         tolerance=tuple(map(float, f.tolerance)),
         n_points=int(fit.n - len(fit.outliers)),
         dof_fit=float(dof),
+        coordinate=f.tolerance_on,
+        scale=drawn_scale(f),
     )
 
 

@@ -33,6 +33,8 @@ from ..fit import (
     probe_residuals,
 )
 from ..geometry import Line, MachineTransform, Profile
+from ..io import rows_to_dataframe
+from . import _toolpath_rows
 from ._bands import Bands, bands_from_samples, bands_linear
 from ._propagate import uncertainty_budget
 
@@ -186,6 +188,30 @@ class ToolpathUncertainty:
             return self.quantile_intervals["vertex"]
         half = coverage_factor(self.vertex_dof, self.p) * self.vertex_sd
         return self.vertices - half, self.vertices + half
+
+    def rows(self) -> list[dict]:
+        """One row per vertex: position, standard uncertainties, correlation
+        (toolpath_bounds.csv; mm, X as a radius)."""
+        return _toolpath_rows.vertex_rows(self)
+
+    def band_rows(self, profile: Profile) -> list[dict]:
+        """One row per grid point: offset from nominal, its u and bands (toolpath_band.csv)."""
+        return _toolpath_rows.band_rows(self, profile)
+
+    def budget_rows(self, profile: Profile) -> list[dict]:
+        """Per output and source, the variance share and u (uncertainty_budget.csv)."""
+        return _toolpath_rows.budget_rows(self, profile)
+
+    def to_dataframe(self, table: str = "vertices", *, profile: Profile | None = None):
+        """A `pandas.DataFrame` of `table`: "vertices" (`rows()`), "band" or "budget"
+        (these two name the features: give the `profile`)."""
+        if table == "vertices":
+            return rows_to_dataframe(self.rows())
+        if table not in ("band", "budget"):
+            raise ValueError(f"unknown table {table!r}; expected vertices, band or budget")
+        if profile is None:
+            raise ValueError(f"table {table!r} names the features: give profile=study.profile")
+        return rows_to_dataframe(getattr(self, f"{table}_rows")(profile))
 
     def __repr__(self) -> str:
         sd = self.vertex_sd

@@ -206,7 +206,7 @@ CLASSES = [
     ("key_typo", "max_correction = 0.1", "max_corection = 0.01", 2, "did you mean 'max_correction'"),
     ("section_typo", "[compensation]", "[compensaton]", 2, "did you mean 'compensation'"),
     ("string_bool", 'method = "robust"', 'method = "robust"\nknown_sigma = "false"', 2, "true or false"),
-    ("inf_tolerance", "tolerance = [-0.0100, 0.0100]", "tolerance = [-inf, 0.0100]", 2, "finite"),
+    ("inf_tolerance", "tolerance = [-0.0200, 0.0200]", "tolerance = [-inf, 0.0200]", 2, "finite"),
     ("x_mode", 'x_mode = "diameter"         # the probe', 'x_mode = "radius"         # the probe', 2, "x_mode"),
     ("z_sign", "z_offset = -312.4873", "z_offset = 312.4873", 2, "z_offset"),
     ("kind", 'kind = "external"', 'kind = "internal"', 2, "[profile] kind"),

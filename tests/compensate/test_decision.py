@@ -9,12 +9,41 @@ from scipy import special
 from piecs_bayes.compensate import (
     DecisionSettings,
     conformance,
-    decide,
     settings_from_spec,
 )
+from piecs_bayes.compensate import decide as _decide
 from piecs_bayes.errors import InputError
 
 TOL = (-0.010, 0.010)
+
+_OPENING = {
+    "compensate": "compensate with gain ",
+    "do not compensate": "do not compensate: ",
+    "measure more": "measure more: ",
+}
+
+
+def check_verdict_agrees_with_reasons(d):
+    """The reasons end with the conclusion, which states the verdict (and nothing
+    else does); the gain applied is the one stated; numbers in µm, null band shown."""
+    assert d.reasons[-1].startswith(_OPENING[d.verdict]), (d.verdict, d.reasons[-1])
+    for r in d.reasons[:-1]:
+        assert not any(r.startswith(o) for o in _OPENING.values()), r
+    text = " ".join(d.reasons)
+    if d.verdict == "compensate":
+        assert d.gain > 0 and d.reasons[-1].startswith(f"compensate with gain {d.gain:.2f}")
+    else:
+        assert d.gain == 0.0 and d.correction == 0.0 and "compensate with" not in text
+    assert d.blocked == ("exceeds max_correction" in d.reasons[-1])
+    assert "lowest" not in text and " mm" not in text and "+0 mm" not in text
+    assert f"null band ±{d.drawn_null_band * 1e3:.1f} µm" in text
+
+
+def decide(**kw):
+    """`compensate.decide`, each result checked for agreement of verdict and reasons."""
+    d = _decide(**kw)
+    check_verdict_agrees_with_reasons(d)
+    return d
 
 
 def test_deviation_far_above_noise_is_compensated():
@@ -26,7 +55,8 @@ def test_deviation_far_above_noise_is_compensated():
     assert d.p_exceed > 0.999 and d.significant
     assert d.conformance_after.state == "conforms"
     assert d.best_action in ("full", "grubbs", "grubbs_prior", "bayes")
-    assert "compensate with gain 1.000" in d.reasons[-1]
+    assert d.reasons[-1].startswith("compensate with gain 1.00: the finish cut moves by -6.0 µm")
+    assert "expected on nominal ± 1.0 µm, which conforms" in d.reasons[-1]
 
 
 def test_deviation_inside_noise_is_not_compensated():
@@ -50,7 +80,33 @@ def test_significance_is_required_without_a_prior():
     assert bayes.correction != 0.0  # the loss alone would adjust ...
     assert 0.5 < d.p_exceed < 0.95
     assert d.verdict == "do not compensate"  # ... but the evidence is too weak
-    assert any("not significant" in r for r in d.reasons)
+    assert d.reasons[-1] == (
+        "do not compensate: the deviation is not significant (without a prior, a correction "
+        "must be significant, or it would chase noise)"
+    )
+    assert "expected cost: " in d.reasons[2] and "adjusting with gain 1.00" in d.reasons[2]
+    assert "below the required 0.95: not significant" in d.reasons[1]
+
+
+def test_reasons_are_stated_as_drawn():
+    """The same decision on a diameter (drawn = 2 x normal): the verdict does not change,
+    the reasons speak of the diameter in µm; a bore (scale -2) flips the signs."""
+    kw = dict(tolerance=(-0.005, 0.005), mean=0.004, sd=0.0004, n_points=20)
+    normal = decide(**kw)
+    dia = decide(**kw, coordinate="diameter", scale=2.0)
+    bore = decide(**kw, coordinate="diameter", scale=-2.0)
+    assert normal.verdict == dia.verdict == bore.verdict == "compensate"
+    assert dia.gain == normal.gain and dia.correction == normal.correction
+    assert dia.drawn_tolerance == (-0.01, 0.01) and dia.drawn_estimate == 0.008
+    assert dia.reasons[0].startswith("as measured +8.0 ± 1.6 µm on the diameter")
+    assert "tolerance -10.0 … +10.0 µm" in dia.reasons[0]
+    assert "the finish cut moves by -8.0 µm on the diameter" in dia.reasons[-1]
+    assert bore.reasons[0].startswith("as measured -8.0 ± 1.6 µm on the diameter")
+    assert "moves by +8.0 µm on the diameter" in bore.reasons[-1]
+    row = dia.as_row()
+    assert row["coordinate"] == "diameter" and row["deviation_drawn_mm"] == 0.008
+    assert (row["tolerance_drawn_lower_mm"], row["tolerance_drawn_upper_mm"]) == (-0.01, 0.01)
+    assert row["null_band_drawn_mm"] == pytest.approx(0.002)
 
 
 def test_near_tolerance_with_large_uncertainty_measures_more():
@@ -75,7 +131,7 @@ def test_measure_more_without_point_count_says_so():
 def test_a_correction_above_the_limit_is_blocked():
     d = decide(tolerance=TOL, mean=0.05, sd=0.001, n_points=12)
     assert d.verdict == "do not compensate" and d.blocked
-    assert "exceeds max_correction 0.02" in d.reasons[-1]
+    assert "exceeds max_correction, the largest allowed (20.0 µm)" in d.reasons[-1]
     assert all(a.blocked for a in d.actions if a.correction != 0.0)
 
 

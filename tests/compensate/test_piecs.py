@@ -116,6 +116,22 @@ def test_tangent_fillet_is_replaced_tangent_to_its_compensated_neighbours():
     assert v == pytest.approx((11.990, -30.0 + 0.010 * 15.0 / 3.0), abs=1e-12)
 
 
+def test_adjusted_path_dataframe_is_toolpath_csv():
+    import io
+
+    import pandas as pd
+
+    from piecs_bayes.export import path_csv
+
+    path = adjusted_path(PROFILE, TRUTH)
+    df = path.to_dataframe()
+    pd.testing.assert_frame_equal(df, pd.read_csv(io.StringIO(path_csv(path))))
+    assert len(df) == len(PROFILE) + 1 and list(df["vertex"]) == list(range(len(df)))
+    assert df["dx_radius_mm"].to_numpy() == pytest.approx(path.shift[:, 0])
+    assert df["nominal_x_radius_mm"].to_numpy() == pytest.approx(PROFILE.vertices[:, 0])
+    assert df.loc[1, "between"] == f"{PROFILE.ids[0]}|{PROFILE.ids[1]}"
+
+
 def test_compensation_above_the_limit_is_refused():
     with pytest.raises(
         AnalysisError,
@@ -148,7 +164,10 @@ def test_cli_fit_and_compensate_write_their_outputs(tmp_path, capsys):
     doc = json.loads((tmp_path / "fit.json").read_text())
     assert [f["feature"] for f in doc["features"]] == list(PROFILE.ids)
     rows = (tmp_path / "toolpath.csv").read_text().splitlines()
-    assert rows[0].startswith("vertex,between,junction,nominal_x,nominal_z,x,z,dx,dz")
+    assert rows[0].startswith(
+        "vertex,between,junction,nominal_x_radius_mm,nominal_z_mm,x_radius_mm,z_mm,"
+        "dx_radius_mm,dz_mm"
+    )
     assert len(rows) == 1 + len(PROFILE) + 1
     assert main(["fit", str(tmp_path / "missing.toml")]) == 2
     assert "missing.toml: study file not found" in capsys.readouterr().err

@@ -12,20 +12,19 @@ from piecs_bayes.export import (
 )
 
 ST = OffsetSettings(null_band=0.002, feedback_gain=0.8, upper_limit=0.1)
+_ARGS = dict(
+    x_error=0.012,
+    u_x=0.001,
+    z_error=-0.005,
+    u_z=0.0008,
+    nose_radius_error=0.001,
+    u_r=0.002,
+    settings=ST,
+)
 
 
 def _update(**kw):
-    args = dict(
-        x_error=0.012,
-        u_x=0.001,
-        z_error=-0.005,
-        u_z=0.0008,
-        nose_radius_error=0.001,
-        u_r=0.002,
-        settings=ST,
-    )
-    args.update(kw)
-    return tool_offset_update(3, **args)
+    return tool_offset_update(3, **{**_ARGS, **kw})
 
 
 def test_gain_null_band_and_uncertainty():
@@ -66,13 +65,37 @@ def test_linuxcnc_g10_exact_text_radius_mode_with_nose_radius():
 def test_fanuc_incremental_and_absolute():
     u = _update()
     assert g10_fanuc(u).splitlines() == [
-        "(piecs-bayes Fanuc wear update T3, X as diameter, mm)",
+        "(piecs-bayes Fanuc wear update T0303: tool 3, wear offset 3, X as diameter, mm)",
         "(standard uncertainties mm: U 0.0008 W 0.0006)",
         "G10 P3 U-0.0096 W0.0040",
     ]
     assert g10_fanuc(u, current=ToolOffsets(x=0.02, z=0.0)).splitlines()[-1] == (
         "G10 P3 X0.0104 Z0.0040"
     )
+
+
+def test_wear_offset_number_where_each_controller_needs_it():
+    # T0211: tool 2 (turret station, LinuxCNC tool-table entry), wear offset 11
+    u = tool_offset_update(
+        2, offset=11, source="the T word T0211 on line 4 of finish.ngc (lines 8-14)", **_ARGS
+    )
+    fanuc = g10_fanuc(u).splitlines()
+    assert fanuc[0] == (
+        "(piecs-bayes Fanuc wear update T0211: tool 2, wear offset 11, X as diameter, mm)"
+    )
+    assert fanuc[1] == "(tool from the T word T0211 on line 4 of finish.ngc [lines 8-14])"
+    assert fanuc[-1] == "G10 P11 U-0.0096 W0.0040"  # Fanuc: the wear offset register
+    linuxcnc = g10_linuxcnc(u, current=ToolOffsets(x=0.1234, z=-2.5, r=0.4)).splitlines()
+    assert linuxcnc[0] == "(piecs-bayes LinuxCNC wear update T2, X as diameter, mm)"
+    assert linuxcnc[-1] == "G10 L1 P2 X0.1138 Z-2.4960"  # LinuxCNC: the tool's entry
+    assert "wear offset 11" in repr(u)
+    back = offsets_from_json(offsets_to_json(u))
+    assert back == u and (back.tool, back.offset) == (2, 11) and back.source == u.source
+    # a file written before the offset number existed reads as offset = tool
+    old = offsets_to_json(_update()).replace('  "offset": 3,\n', "")
+    assert '"offset"' not in old and offsets_from_json(old).offset == 3
+    with pytest.raises(InputError, match="offset must be an integer >= 1, got 0"):
+        tool_offset_update(2, x_error=0.01, offset=0)
 
 
 def test_everything_inside_the_null_band_changes_nothing():

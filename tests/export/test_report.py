@@ -9,6 +9,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 import io
+import re
 import shutil
 from html.parser import HTMLParser
 from pathlib import Path
@@ -30,6 +31,7 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 #: figures each section must embed for the demo part (Bayesian run, one part)
 DEMO_FIGURES = {
+    "verdict": 0,
     "summary": 0,
     "profile": 2,
     "residuals": 1,
@@ -141,9 +143,15 @@ def test_html_is_self_contained_with_every_section_and_figure(demo_report, demo_
             assert src.startswith("data:image/png;base64,")
             assert base64.b64decode(src.split(",", 1)[1])[:8] == PNG
     body = {sid: " ".join(t) for sid, t in p.text.items()}
-    assert "deviation ± U (µm, 95.45 %)" in body["summary"]
+    assert "deviation ± U (µm)" in body["summary"] and "null band ± (µm)" in body["summary"]
+    assert "applied gain" in body["summary"]
     for d in demo_results.decisions.decisions:
-        assert d.verdict in body["summary"]
+        assert d.verdict in body["summary"] and d.feature in body["verdict"]
+        assert d.reasons[-1] in body["summary"]
+    for want in ("conformance as measured", "verdict for the next part", "Ø ±20", "Z ±50",
+                 "normal ±20", "What to load:", "Checked by:"):  # fmt: skip
+        assert want in body["verdict"], want
+    assert '<td class="does-not-conform">does not conform</td>' in text  # pass/fail colour
     assert "NOT converged" in body["summary"]  # 400 steps: said, not hidden
     assert "R-hat" in body["posterior"] and "ESS" in body["posterior"]
     assert "repeatability (%)" in body["budget"]
@@ -155,33 +163,43 @@ def test_html_is_self_contained_with_every_section_and_figure(demo_report, demo_
     assert "piecs-bayes report" in body["inputs"]
 
 
-def test_pdf_has_the_expected_pages(demo_report):
+#: the pages the demo report fills (A4 landscape, text and figures flowed)
+MAX_PAGES = 13
+
+
+def test_pdf_has_the_expected_pages(demo_report, demo_results):
     _, pdf = demo_report
     assert pdf[:5] == b"%PDF-"
     reader = PdfReader(io.BytesIO(pdf))
     texts = [page.extract_text() for page in reader.pages]
-    figures = sum(DEMO_FIGURES.values())
-    text_pages = sum(1 for t in texts if "piecs_bayes report ·" in t)
-    assert len(texts) == figures + text_pages
-    # every section heads at least one page, in order
-    first = []
+    n = len(texts)
+    assert n <= MAX_PAGES  # 18 before the flowed layout, five of them nearly empty
+    for i, t in enumerate(texts, start=1):
+        assert "piecs_bayes report ·" in t and f"page {i} of {n}" in t
+    # the first page is the verdict: one row per feature as drawn, what to load, signature
+    first = texts[0]
+    assert "1. Verdict" in first and "2. Decisions per feature" not in first
+    for d in demo_results.decisions.decisions:
+        assert d.feature in first
+    for text in ("conformance\nas measured", "Ø ±20", "Z ±50", "The part does NOT conform",
+                 "What to load:", "Checked by:"):  # fmt: skip
+        assert text in first, text
+    assert re.search(
+        r"dia_24 Ø24\.000, Z0\.000 to -30\.000 Ø ±20 \+\d+\.\d ± \d\.\d does not", first
+    )
+    # every section heads a page region, in order; every figure has its numbered caption
+    starts = []
     for k, (_, title) in enumerate(SECTIONS, start=1):
         pages = [i for i, t in enumerate(texts) if f"{k}. {title}" in t]
         assert pages, title
-        first.append(pages[0])
-    assert first == sorted(first)
+        starts.append(pages[0])
+    assert starts == sorted(starts)
     joined = "\n".join(texts)
-    for label in (
-        "Z (mm, along the spindle axis)",
-        "X (mm, radius)",
-        "normal offset from nominal (µm",
-        "residual (µm)",
-        "τ (steps)",
-        "ESS (draws)",
-        "share of the variance (%)",
-        "exaggerated × ",
-    ):
+    for k in range(1, sum(DEMO_FIGURES.values()) + 1):
+        assert f"Figure {k} (section " in joined, k
+    for label in ("τ: autocorrelation time", "ESS: effective sample size", "null band"):
         assert label in joined, label
+    assert " um " not in joined and " um)" not in joined  # µm throughout
 
 
 def test_sections_say_why_a_step_is_unavailable(tmp_path):
@@ -205,6 +223,30 @@ def test_sections_say_why_a_step_is_unavailable(tmp_path):
     assert "lies on no profile feature" in body["program"]
     assert "No error specification" in body["errspec"]
     assert len(p.imgs["profile"]) == 2 and len(p.imgs["budget"]) == 1
+
+
+def test_a_diameter_tolerance_is_reported_as_drawn(tmp_path):
+    """Ø24 ±0.010 as drawn: the report shows ±10 µm on Ø (the decision works on the
+    radius, ±5 µm), in the verdict, the decision table and the summary rows."""
+    text = DEMO.read_text()
+    head, rest = text.split('id = "dia_24"', 1)
+    rest = rest.replace("tolerance = [-0.0200, 0.0200]", "tolerance = [-0.0100, 0.0100]", 1)
+    (tmp_path / "study.toml").write_text(head + 'id = "dia_24"' + rest)
+    shutil.copy(DATA / "demo" / "probe_part01.csv", tmp_path / "probe_part01.csv")
+    shutil.copy(DATA / "demo" / "finish.ngc", tmp_path / "finish.ngc")
+    res = run_job(
+        tmp_path / "study.toml", bayes=False, uncertainty=False, program=False, errspec=False,
+        progress=False,
+    )  # fmt: skip
+    d = res.decisions["dia_24"]
+    assert d.tolerance == (-0.005, 0.005) and d.drawn_tolerance == (-0.01, 0.01)
+    row = {r["feature"]: r for r in summary_rows(res)}["dia_24"]
+    assert (row["coordinate"], row["tol_lower_um"], row["tol_upper_um"]) == ("diameter", -10, 10)
+    assert row["deviation_um"] == pytest.approx(2e3 * d.estimate)
+    p = _parse(report_html(res))
+    for sid in ("verdict", "summary"):
+        cells = " ".join(p.text[sid])
+        assert "Ø ±10" in cells and "Ø ±20" in cells, sid  # dia_24 and dia_30
 
 
 def test_capability_section_with_several_parts():
@@ -236,7 +278,7 @@ def test_progress_lines_go_to_a_callable():
         capability=False,
         progress=lines.append,
     )
-    assert lines[0].startswith("read ") and lines[-1] == "done"
+    assert lines[0].startswith("read ") and lines[-1].startswith("main job finished in ")
     assert any(line.startswith("fitted 7 features") for line in lines)
 
 

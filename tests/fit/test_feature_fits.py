@@ -117,3 +117,34 @@ def test_robust_fits_survive_chips_where_plain_least_squares_does_not(frac, loss
     assert np.max(np.abs(z_plain)) > 10.0
     flagged = sum(len(f.outliers) for f in robust)
     assert flagged >= 0.9 * n_out  # nearly every chip is reported
+
+
+def test_profile_fit_dataframes_are_its_csvs():
+    """`ProfileFit.to_dataframe()` is fit.csv (and residuals.csv) as pandas reads it:
+    one row per parameter with its unit."""
+    import io
+
+    import pandas as pd
+
+    from piecs_bayes.export import fit_csv, residuals_csv
+
+    sim = simulate_probe(PROFILE, TRUTH, ball_radius=1.0, points=DEMO_POINTS, noise_sd=SIGMA, rng=4)
+    fit = fit_profile(
+        PROFILE, sim["feature"], sim["points"], ball_radius=1.0, sigma=SIGMA, part="p1"
+    )
+    df = fit.to_dataframe()
+    pd.testing.assert_frame_equal(df, pd.read_csv(io.StringIO(fit_csv(fit))))
+    assert len(df) == sum(f.nparams for f in PROFILE.features)
+    units = df.groupby("parameter")["unit"].unique().to_dict()
+    assert {k: list(v) for k, v in units.items()} == {
+        "offset": ["mm"], "rotation": ["rad"], "center_x": ["mm"], "center_z": ["mm"],
+        "radius": ["mm"],
+    }  # fmt: skip
+    assert df.loc[df["parameter"] == "offset", "value"].to_numpy() == pytest.approx(
+        [fit[k].values[0] for k in PROFILE.ids if PROFILE[k].kind == "line"]
+    )
+    res = fit.to_dataframe("residuals")
+    pd.testing.assert_frame_equal(res, pd.read_csv(io.StringIO(residuals_csv(fit))))
+    assert len(res) == len(sim["points"]) and set(res["part"]) == {"p1"}
+    with pytest.raises(ValueError, match="unknown table 'points'"):
+        fit.to_dataframe("points")

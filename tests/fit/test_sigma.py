@@ -158,7 +158,7 @@ def test_study_outputs_name_the_sigma_and_known_sigma_is_declared():
     assert fit.sigma.source == "pooled+declared" and fit.sigma.dof == 46
     rows = fit_csv(fit).splitlines()
     head = rows[0].split(",")
-    assert {"sigma", "sigma_source", "sigma_dof", "residual_dof"} <= set(head)
+    assert {"sigma_mm", "sigma_source", "sigma_dof", "residual_dof"} <= set(head)
     assert all(",pooled+declared," in r for r in rows[1:])
     known = dataclasses.replace(study, fit=dataclasses.replace(study.fit, known_sigma=True))
     kfit = fit_study(known)

@@ -2,11 +2,13 @@
 
 import math
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from piecs_bayes.errors import InputError
+from piecs_bayes.geometry import drawn_limits, drawn_scale
 from piecs_bayes.io import load_study, read_probe_csv
 from piecs_bayes.jobs import fit_study
 
@@ -24,6 +26,7 @@ id = "face"
 type = "line"
 start = [8.0, 0.0]
 end = [24.0, 0.0]
+tolerance_on = "length"
 
 [[profile.feature]]
 id = "dia"
@@ -31,11 +34,14 @@ type = "line"
 start = [24.0, 0.0]
 end = [{dia_end}, -30.0]
 tolerance = [-0.01, 0.01]
+tolerance_on = "diameter"
 
 [probe]
 ball_radius = 1.0
 repeatability = 0.001
 """
+
+DATA = Path(__file__).resolve().parents[2] / "data"
 
 
 def write_study(tmp_path, *, units="mm", dia_end="24.0", profile_extra="", csv=None, extra=""):
@@ -63,6 +69,99 @@ def test_a_valid_study_and_probe_file(tmp_path):
     probe = read_probe_csv(tmp_path / "p.csv", features=study.profile.ids)
     assert np.allclose(probe.points[:, 0], 13.01)  # X diameter in the file
     assert list(probe.lines) == [3, 4, 5]
+
+
+def test_tolerances_are_read_as_drawn(tmp_path):
+    """Ø24 ±0.010 as drawn limits the radius (the normal deviation) to ±0.005; a face's
+    tolerance is on Z; a bore's diameter grows when material is taken away."""
+    study = load_study(write_study(tmp_path))
+    dia, face = study.profile["dia"], study.profile["face"]
+    assert (dia.tolerance_on, dia.tolerance) == ("diameter", (-0.005, 0.005))
+    assert drawn_limits(dia) == (-0.01, 0.01) and drawn_scale(dia) == 2.0
+    assert (face.tolerance_on, face.tolerance) == ("length", (-0.01, 0.01))  # the default
+    assert drawn_scale(face) == 1.0  # the end face: outward is +Z
+    path = write_study(tmp_path, profile_extra='kind = "internal"\n')
+    text = path.read_text().replace("tolerance = [-0.01, 0.01]", "tolerance = [-0.004, 0.012]")
+    path.write_text(text.replace('tolerance_on = "diameter"', 'tolerance_on = "radius"'))
+    bore = load_study(path).profile["dia"]
+    # a bore: outward (out of the material) points to the axis; +material = smaller radius
+    assert drawn_scale(bore) == -1.0 and bore.tolerance == pytest.approx((-0.012, 0.004))
+    assert drawn_limits(bore) == pytest.approx((-0.004, 0.012))
+    path.write_text(text)  # the same limits on the diameter
+    assert load_study(path).profile["dia"].tolerance == pytest.approx((-0.006, 0.002))
+    taper = write_study(tmp_path, dia_end="30.0")
+    taper.write_text(
+        taper.read_text().replace('tolerance_on = "diameter"', 'tolerance_on = "normal"')
+    )
+    t = load_study(taper).profile["dia"]
+    assert (t.tolerance_on, t.tolerance, drawn_scale(t)) == ("normal", (-0.01, 0.01), 1.0)
+
+
+@pytest.mark.parametrize(
+    "old, new, pattern",
+    [
+        (  # missing: the message names the feature and shows the line to add
+            'tolerance_on = "diameter"\n',
+            "",
+            r"feature 'dia': profile\.feature\[1\]\.tolerance_on: missing: 'dia' is a diameter "
+            r"\(cylinder\); say what its tolerance \[-0\.01, 0\.01\] limits: add the line "
+            r'tolerance_on = "diameter" to its \[\[profile\.feature\]\] table \(the tolerance is '
+            r'then on the diameter Ø, as drawn; "radius" for a tolerance on the radius\)',
+        ),
+        (
+            'tolerance_on = "length"\n',
+            "",
+            r"feature 'face': profile\.feature\[0\]\.tolerance_on: missing: 'face' is a face or "
+            r"shoulder; say what its tolerance \(default \[-0\.01, 0\.01\]\) limits: add the "
+            r'line tolerance_on = "length"',
+        ),
+        (
+            'tolerance_on = "diameter"',
+            'tolerance_on = "normal"',
+            r"profile\.feature\[1\]\.tolerance_on: 'normal' does not fit 'dia', a diameter "
+            r'\(cylinder\): write tolerance_on = "diameter" or tolerance_on = "radius"',
+        ),
+        (
+            'tolerance_on = "length"',
+            'tolerance_on = "diameter"',
+            r"'diameter' does not fit 'face', a face or shoulder: write tolerance_on = \"length\"",
+        ),
+        (
+            'tolerance_on = "diameter"',
+            'tolerance_on = "dia"',
+            r"tolerance_on: unknown value 'dia'; expected one of 'diameter', 'radius', 'length', "
+            r"'normal'",
+        ),
+        (
+            'tolerance_on = "diameter"',
+            'tolerance_on = "diameter"\ntolerance_in = "mm"',
+            r"profile\.feature\[1\]\.tolerance_in: unknown key 'tolerance_in'; did you mean "
+            r"'tolerance_on'\?",
+        ),
+    ],
+)
+def test_a_tolerance_must_say_what_it_limits(tmp_path, old, new, pattern):
+    path = write_study(tmp_path)
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(InputError, match=pattern):
+        load_study(path)
+
+
+def test_shipped_studies_keep_their_tolerance_band():
+    """The demo and batch studies say what their tolerances limit; the physical band
+    (the normal deviation's limits) is the one they had before it was said."""
+    band = {"face_end": 0.05, "dia_24": 0.01, "taper": 0.02, "dia_30": 0.01,
+            "fillet": 0.05, "shoulder": 0.03, "dia_44": 0.015}  # fmt: skip
+    on = {"face_end": "length", "dia_24": "diameter", "taper": "normal", "dia_30": "diameter",
+          "fillet": "normal", "shoulder": "length", "dia_44": "diameter"}  # fmt: skip
+    for name in ("demo", "batch"):
+        study = load_study(DATA / name / "study.toml")
+        for f in study.profile:
+            assert f.tolerance == pytest.approx((-band[f.id], band[f.id])), (name, f.id)
+            assert f.tolerance_on == on[f.id], (name, f.id)
+    assert drawn_limits(study.profile["dia_24"]) == pytest.approx((-0.02, 0.02))
 
 
 def test_inch_study_is_converted_to_mm(tmp_path):

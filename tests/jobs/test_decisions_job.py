@@ -178,6 +178,63 @@ def test_decision_table_outputs(demo):
     assert "COMPENSATE" in text and "dia_24" in text
 
 
+def test_decision_table_dataframe_is_its_csv(demo):
+    import io
+
+    import pandas as pd
+
+    study, fit = demo
+    table = D.decide_study(study, fit)
+    df = table.to_dataframe()
+    pd.testing.assert_frame_equal(df, pd.read_csv(io.StringIO(E.decisions_csv(table))))
+    assert list(df["feature"]) == list(study.profile.ids)
+    assert df.set_index("feature").loc["dia_24", "verdict"] == table["dia_24"].verdict
+    assert {"estimate_mm", "u_estimate_mm", "tolerance_lower_mm", "gain"} <= set(df.columns)
+
+
+def _dia_24_as_drawn(folder: Path, tol: str) -> Path:
+    """The demo study with dia_24's tolerance replaced (as drawn on the diameter)."""
+    text = DEMO.read_text()
+    head, rest = text.split('id = "dia_24"', 1)
+    old = 'tolerance = [-0.0200, 0.0200]\ntolerance_on = "diameter"'
+    assert old in rest.split("[[profile.feature]]", 1)[0]
+    (folder / "study.toml").write_text(head + 'id = "dia_24"' + rest.replace(old, tol, 1))
+    for f in ("probe_part01.csv", "finish.ngc"):
+        (folder / f).write_text((DEMO.parent / f).read_text())
+    return folder / "study.toml"
+
+
+def test_a_diameter_tolerance_is_decided_as_drawn(tmp_path):
+    """Ø24 ±0.010 as drawn: the decision's limits are ±0.005 on the radius (the normal
+    deviation), every table states the diameter, ±10 µm."""
+    study = load_study(
+        _dia_24_as_drawn(tmp_path, 'tolerance = [-0.010, 0.010]\ntolerance_on = "diameter"')
+    )
+    table = D.decide_study(study, fit_study(study))
+    d = table["dia_24"]
+    assert d.tolerance == (-0.005, 0.005) and d.drawn_tolerance == (-0.01, 0.01)
+    assert d.coordinate == "diameter" and d.drawn_estimate == 2 * d.estimate
+    assert d.drawn_null_band == pytest.approx(0.002)  # 10 % of the drawn width
+    assert "tolerance -10.0 … +10.0 µm" in d.reasons[0] and "on the diameter" in d.reasons[0]
+    row = {r["feature"]: r for r in table.rows()}["dia_24"]
+    assert row["coordinate"] == "diameter"
+    assert (row["tolerance_drawn_lower_mm"], row["tolerance_drawn_upper_mm"]) == (-0.01, 0.01)
+    assert row["deviation_drawn_mm"] == 2 * row["estimate_mm"]
+    doc = {f["feature"]: f for f in json.loads(E.decisions_json(table))["features"]}
+    assert doc["dia_24"]["characteristic"]["coordinate"] == "diameter"
+    assert doc["dia_24"]["characteristic"]["scale"] == 2.0
+    assert doc["face_end"]["coordinate"] == "length" and doc["taper"]["coordinate"] == "normal"
+    line = next(x for x in E.decisions_text(table).splitlines() if x.startswith("dia_24 "))
+    assert "diameter" in line and "[-10,+10]" in line
+    # the same band on the radius is the same decision
+    radius = load_study(
+        _dia_24_as_drawn(tmp_path, 'tolerance = [-0.005, 0.005]\ntolerance_on = "radius"')
+    )
+    r = D.decide_study(radius, fit_study(radius))["dia_24"]
+    assert r.tolerance == d.tolerance and r.verdict == d.verdict and r.gain == d.gain
+    assert r.drawn_tolerance == (-0.005, 0.005) and "on the radius" in r.reasons[0]
+
+
 def test_decide_from_posterior_estimates(demo):
     study, fit = demo
     rng = np.random.default_rng(1)
@@ -296,6 +353,27 @@ def test_capability_over_the_batch_finds_the_tool_change(batch):
     assert len(cs.part_rows()) == 36 * 7 and len(cs.summary_rows()) == 7
 
 
+def test_capability_dataframes_are_its_csvs(batch):
+    import io
+
+    import pandas as pd
+
+    _, cs = batch
+    csvs = E.capability_csvs(cs)
+    for table, name in (
+        ("summary", "capability_summary.csv"),
+        ("indices", "capability.csv"),
+        ("parts", "capability_parts.csv"),
+    ):
+        df = cs.to_dataframe(table)
+        pd.testing.assert_frame_equal(df, pd.read_csv(io.StringIO(csvs[name])), obj=name)
+    parts = cs.to_dataframe("parts")
+    assert len(parts) == 36 * 7 and {"value_mm", "u_mm", "lcl_mm", "ucl_mm"} <= set(parts)
+    assert list(cs.to_dataframe()["feature"]) == list(cs.features)
+    with pytest.raises(ValueError, match="unknown table 'index'"):
+        cs.to_dataframe("index")
+
+
 def test_capability_from_values_is_pure():
     rng = np.random.default_rng(3)
     y = np.r_[rng.normal(0.002, 0.001, 15), rng.normal(-0.004, 0.001, 15)]
@@ -315,9 +393,17 @@ def test_capability_from_values_is_pure():
 
 
 def _independent_comp_check(text: str) -> list[tuple[float, float, float]]:
-    """LinuxCNC comp-file rules checked without the package's parser."""
+    """LinuxCNC comp-file rules checked without the package's parser: three numbers
+    per line, then only `#` notes (LinuxCNC stops reading at the first), which state
+    the range, the end values held outside it and that every move is affected."""
     assert text.endswith("\n") and "\r" not in text
     lines = text[:-1].split("\n")
+    first_note = next((i for i, line in enumerate(lines) if line.startswith("#")), len(lines))
+    lines, notes = lines[:first_note], "\n".join(lines[first_note:])
+    assert all(line.startswith("# ") and len(line) < 254 for line in notes.splitlines())
+    if notes:
+        assert f"Range: nominal {lines[0].split()[0]} to {lines[-1].split()[0]}" in notes
+        assert "holds the end" in notes and "every move" in notes and "probing" in notes
     assert 1 <= len(lines) <= 256
     num = r"-?\d+\.\d+"
     rows = []
@@ -373,18 +459,20 @@ def test_compensation_outputs_are_written_and_validated(demo, tmp_path):
     assert upd.z.error == pytest.approx(
         np.mean([xs["face_end"].mean, xs["shoulder"].mean]), abs=2e-3
     )
-    assert "G10 P1 U-0.0372" in (tmp_path / "tool_offsets_fanuc.ngc").read_text()
+    # the program's finish tool, N20 T0202: tool 2, wear offset 2 (G10 P<wear offset>)
+    assert "G10 P2 U-0.0372" in (tmp_path / "tool_offsets_fanuc.ngc").read_text()
+    assert (upd.tool, upd.offset) == (2, 2)
     assert any("diameters disagree" in n for n in out.notes)
     assert any("nose radius not updated" in n for n in out.notes)
 
 
 def test_tool_offsets_with_current_values_nose_radius_and_block(demo, tmp_path):
     study, fit = demo
-    cur = {"current_x": 0.1234, "current_z": -2.5, "current_r": 0.4, "tool": 3}
+    cur = {"current_x": 0.1234, "current_z": -2.5, "current_r": 0.4, "tool": 2}
     s1 = replace(study, offsets=MappingProxyType(cur))
     out = E.write_compensation_outputs(s1, fit, tmp_path / "a", gain=0.5)
     g10 = (tmp_path / "a" / "tool_offsets_linuxcnc.ngc").read_text()
-    assert "G10 L1 P3 X0.0862 Z-2.4893" in g10 and "G21 G7" in g10
+    assert "G10 L1 P2 X0.0862 Z-2.4893" in g10 and "G21 G7" in g10  # as the program's T0202
     off, rot = fit["dia_24"].values
     assert out.errspec.table("x_radius").correction[0] == pytest.approx(
         -0.5 * off * math.cos(rot), abs=1e-15
@@ -428,8 +516,9 @@ def test_cli_decide_capability_and_compensate(demo, tmp_path, capsys):
     for name in ("capability.csv", "capability_summary.csv", "capability_parts.csv"):
         assert (tmp_path / "c" / name).is_file()
 
-    # compensate also writes the error spec, the LinuxCNC tables and the offsets
-    assert main(["compensate", str(DEMO), "--out", str(tmp_path / "p"), "-q"]) == 0
+    # compensate writes the route's machine files; with --alternatives the others too
+    argv = ["compensate", str(DEMO), "--out", str(tmp_path / "p"), "-q", "--alternatives"]
+    assert main(argv) == 0
     for name in ("toolpath.csv", "compensation.errspec.json", "linuxcnc_comp.ini"):
         assert (tmp_path / "p" / name).is_file(), name
     read_errspec(tmp_path / "p" / "compensation.errspec.json")

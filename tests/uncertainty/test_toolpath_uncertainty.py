@@ -32,6 +32,35 @@ def demo_uncertainty():
     return study, fit, bayes, toolpath_uncertainty(study, fit, bayes=bayes)
 
 
+def test_dataframes_are_the_bounds_band_and_budget_csvs():
+    import io
+
+    import pandas as pd
+
+    from piecs_bayes.export import band_csv, bounds_csv, budget_csv
+
+    study = load_study(DEMO)
+    tpu = toolpath_uncertainty(study, fit_study(study))["linearised"]
+    profile = study.profile
+
+    def read(text):
+        return pd.read_csv(io.StringIO(text))
+
+    pd.testing.assert_frame_equal(tpu.to_dataframe(), read(bounds_csv(tpu)))
+    band = tpu.to_dataframe("band", profile=profile)
+    pd.testing.assert_frame_equal(band, read(band_csv(tpu, profile)))
+    budget = tpu.to_dataframe("budget", profile=profile)
+    pd.testing.assert_frame_equal(budget, read(budget_csv(tpu, profile)))
+    vertices = tpu.to_dataframe()
+    assert vertices["u_x_radius_mm"].to_numpy() == pytest.approx(tpu.vertex_sd[:, 0])
+    total = budget[budget["source"] == "total"].set_index("output")["u"]
+    assert total["vertex1.x_radius"] == pytest.approx(tpu.vertex_sd[1, 0])
+    with pytest.raises(ValueError, match="give profile=study.profile"):
+        tpu.to_dataframe("band")
+    with pytest.raises(ValueError, match="unknown table 'vertex'"):
+        tpu.to_dataframe("vertex")
+
+
 def test_linearised_and_monte_carlo_agree_within_10_percent_on_the_demo(demo_uncertainty):
     study, _, bayes, unc = demo_uncertainty
     lin, mc = unc["linearised"], unc["monte_carlo"]

@@ -1,0 +1,210 @@
+"""The PDF report's page layout: text, tables and figures flowed onto A4 landscape
+pages, drawn with matplotlib alone (no HTML engine, no system libraries).
+
+A [`Flow`][] keeps a cursor on the current page; each block is cut into pieces that
+fit (lines of a paragraph, rows of a table with its header repeated, a figure scaled
+to the room left) so that a page is filled before the next begins and sections
+follow each other on the same page. A figure that does not fit floats: the text goes
+on, and the figure heads the next page (figures keep their order). Pages are lists
+of draw operations in inches from the page's top-left corner; [`render_pages`][]
+turns them into Figures with a footer ("page i of n"). Text widths are measured with
+the fonts matplotlib embeds (`TextToPath`), so wrapped lines and table columns fit.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+
+PAGE_W, PAGE_H = 11.69, 8.27  # A4 landscape, inches
+LEFT, RIGHT, TOP, BOTTOM = 0.6, 0.6, 0.45, 0.55
+WIDTH = PAGE_W - LEFT - RIGHT
+END = PAGE_H - BOTTOM  # the content ends here (inches from the top)
+
+#: font sizes (points) and line height per point of size
+BODY, SMALL, CELL, MONO, HEAD, TITLE = 8.6, 7.6, 7.3, 6.8, 12.5, 16.0
+LEAD = 1.28
+PT = 1.0 / 72.0
+
+__all__ = ["Flow", "render_pages", "text_width", "wrap"]
+
+
+@functools.lru_cache(maxsize=8)
+def _props(size: float, bold: bool, mono: bool):
+    from matplotlib.font_manager import FontProperties
+
+    return FontProperties(
+        size=size, weight="bold" if bold else "normal", family="monospace" if mono else None
+    )
+
+
+@functools.lru_cache(maxsize=65536)
+def _word_pt(word: str, size: float, bold: bool, mono: bool) -> float:
+    from matplotlib.textpath import TextToPath
+
+    if not word:
+        return 0.0
+    w, _, _ = TextToPath().get_text_width_height_descent(
+        word, _props(size, bold, mono), ismath=False
+    )
+    return float(w)
+
+
+def text_width(text: str, size: float, *, bold=False, mono=False) -> float:
+    """Width of `text` in inches (words measured, kerning between them ignored)."""
+    words = text.split(" ")
+    space = _word_pt("a a", size, bold, mono) - 2 * _word_pt("a", size, bold, mono)
+    total = sum(_word_pt(w, size, bold, mono) for w in words) + space * (len(words) - 1)
+    return 1.03 * total * PT
+
+
+def _break_word(word: str, width: float, size, bold, mono) -> list[str]:
+    out, cur = [], ""
+    for ch in word:
+        if cur and text_width(cur + ch, size, bold=bold, mono=mono) > width:
+            out.append(cur)
+            cur = ""
+        cur += ch
+    return out + [cur]
+
+
+def wrap(text: str, width: float, size: float, *, bold=False, mono=False, indent="") -> list[str]:
+    """`text` wrapped greedily into lines of at most `width` inches (explicit newlines
+    kept; continuation lines start with `indent`)."""
+    lines: list[str] = []
+    for para in text.split("\n"):
+        cur = ""
+        for word in para.split(" "):
+            trial = f"{cur} {word}" if cur else word
+            if text_width(trial, size, bold=bold, mono=mono) <= width or not cur:
+                cur = trial
+            else:
+                lines.append(cur)
+                cur = indent + word
+            if text_width(cur, size, bold=bold, mono=mono) > width:
+                parts = _break_word(cur, width, size, bold, mono)
+                lines += parts[:-1]
+                cur = parts[-1]
+        lines.append(cur)
+    return lines
+
+
+Draw = Callable[[object, float], None]  # (figure, y of the piece's top, inches)
+
+
+class Flow:
+    """Pieces placed top to bottom on pages; a piece that does not fit starts a page."""
+
+    def __init__(self):
+        self.pages: list[list[tuple[float, Draw]]] = [[]]
+        self.y = TOP
+        self.floats: list = []  # figures waiting for the top of the next page
+        self._flushing = False
+
+    @property
+    def room(self) -> float:
+        return END - self.y
+
+    @property
+    def at_top(self) -> bool:
+        return not self.pages[-1]
+
+    def new_page(self) -> None:
+        """Start a page; figures that waited for it go first."""
+        if self.pages[-1]:
+            self.pages.append([])
+        self.y = TOP
+        if not self._flushing:
+            self._flushing = True
+            while self.floats and self.floats[0].fits(self):
+                self.floats.pop(0).place(self)
+            self._flushing = False
+
+    def flush(self) -> None:
+        """Place every waiting figure (the document's end)."""
+        while self.floats:
+            piece = self.floats.pop(0)
+            if not piece.fits(self):
+                self.new_page()
+            piece.place(self)
+
+    def ensure(self, height: float) -> None:
+        """Start a page unless `height` inches are left on this one (again when the
+        figures that waited for the new page leave too little)."""
+        while height > self.room and not self.at_top:
+            self.new_page()
+
+    def place(self, height: float, draw: Draw) -> None:
+        self.ensure(height)
+        self.pages[-1].append((self.y, draw))
+        self.y += height
+
+    def skip(self, height: float) -> None:
+        """Vertical space (dropped at the top of a page)."""
+        if not self.at_top:
+            self.y = min(self.y + height, END)
+
+
+def text_op(lines: list[str], size: float, **kw) -> tuple[float, Draw]:
+    """Lines of text as one piece: `(height, draw)`; `kw` go to `Figure.text`."""
+    x = kw.pop("x", LEFT)
+    kw.setdefault("ha", "left")
+    height = len(lines) * size * LEAD * PT
+
+    def draw(fig, y):
+        fig.text(
+            x,
+            PAGE_H - y,
+            "\n".join(lines),
+            fontsize=size,
+            va="top",
+            linespacing=LEAD,
+            transform=fig.dpi_scale_trans,
+            **kw,
+        )
+
+    return height, draw
+
+
+def box_op(x: float, w: float, h: float, colour: str, edge: str | None = None) -> Draw:
+    """A filled rectangle (a table cell, a highlighted paragraph) at the piece's top."""
+
+    def draw(fig, y):
+        from matplotlib.patches import Rectangle
+
+        fig.add_artist(
+            Rectangle(
+                (x, PAGE_H - y - h),
+                w,
+                h,
+                transform=fig.dpi_scale_trans,
+                facecolor=colour,
+                edgecolor=edge or colour,
+                linewidth=0.4,
+            )
+        )
+
+    return draw
+
+
+def render_pages(pages, footer: str):
+    """Yield one Figure per page: its pieces drawn, then the footer and page number."""
+    from matplotlib.figure import Figure
+
+    n = len(pages)
+    for i, page in enumerate(pages, start=1):
+        fig = Figure(figsize=(PAGE_W, PAGE_H))
+        fig.set_layout_engine("none")
+        for y, draw in page:
+            draw(fig, y)
+        fig.text(LEFT, 0.28, footer, fontsize=7, color="0.4", transform=fig.dpi_scale_trans)
+        fig.text(
+            PAGE_W - RIGHT,
+            0.28,
+            f"page {i} of {n}",
+            fontsize=7,
+            color="0.4",
+            ha="right",
+            transform=fig.dpi_scale_trans,
+        )
+        yield fig

@@ -1,0 +1,63 @@
+"""The one route of a correction to the machine: [`apply_route`][].
+
+A job's correction can reach the machine three ways, and each carries all of it:
+the adjusted part program (only the finish-cut words of this part's program
+change), the error specification (native tables, or LinuxCNC joint compensation
+tables that act on every move of a joint) and the tool-offset update (a constant
+wear offset of one tool, for every program that uses it). Loading two of them
+applies the correction twice, so a study chooses one (`[compensation] apply`), or
+the command line does (`--apply`), or the default does:
+
+- `"program"` when the study names a part program: the most local route (this
+  program only, nothing left loaded in the controller afterwards, the diff shows
+  every change) and the only one that carries arcs and tapers exactly;
+- `"errspec"` otherwise: without a program it is the route that still carries the
+  shape of the error (a correction per position), where a tool offset carries
+  only a constant.
+"""
+
+from __future__ import annotations
+
+from ..errors import InputError
+from ..io import APPLY_ROUTES
+
+__all__ = ["APPLY_ROUTES", "apply_route"]
+
+
+def apply_route(study, route: str | None = None) -> tuple[str, str]:
+    """The route of `study`'s correction to the machine and why it was chosen.
+
+    **Arguments:**
+
+    - `study`: a `Study`.
+    - `route`: one of `APPLY_ROUTES` (the command line's `--apply`), or `None` for the
+      study's `[compensation] apply`, else the default (see the module doc).
+
+    **Returns:** `(route, why)`, `why` a short phrase for the console and the report.
+
+    **Raises:** `InputError` for an unknown route, and for `"program"` when the study
+    names no part program (the message names the key and the study file).
+    """
+    if route is not None:
+        if route not in APPLY_ROUTES:
+            raise InputError(
+                f"--apply: unknown route {route!r}; expected one of "
+                f"{', '.join(map(repr, APPLY_ROUTES))}",
+                value=route,
+            )
+        key, why = "--apply", "chosen with --apply"
+    elif study.compensation.apply is not None:
+        route = study.compensation.apply
+        key, why = "compensation.apply", "the study's [compensation] apply"
+    elif study.program is not None:
+        return "program", "the default: the study names a part program"
+    else:
+        return "errspec", "the default: the study names no part program"
+    if route == "program" and study.program is None:
+        raise InputError(
+            f"{key}: 'program', but the study names no part program ([study] part_program); "
+            "choose 'errspec', 'tool_offset' or 'none'",
+            file=str(study.path),
+            value=route,
+        )
+    return route, why
