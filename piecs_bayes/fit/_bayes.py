@@ -230,7 +230,7 @@ def sample_posterior(
     burn: int | None = None,
     thin: int | str = "auto",
     seed: int = 0,
-    progress: bool = True,
+    progress=True,
     n_ensembles: int = 4,
     init_scale: float = 1.0,
     on_fail: Literal["warn", "raise", "ignore"] = "warn",
@@ -261,7 +261,8 @@ def sample_posterior(
       default): about half the smallest autocorrelation time, estimated on the
       unthinned draws (ESS and R-hat are then those of the stored draws).
     - `seed`: seeds every ensemble's start and random stream (reproducible).
-    - `progress`: tqdm progress bar per ensemble (emcee's).
+    - `progress`: tqdm progress bar per ensemble (emcee's); a callable also gets a
+      line before the diagnostics (a few seconds after the last bar).
     - `n_ensembles`: independent ensembles, for $\\hat R$ (see module doc).
     - `on_fail`: `"warn"` (`ConvergenceWarning`), `"raise"` (`ConvergenceError`)
       or `"ignore"` when the run does not meet the criteria below.
@@ -287,7 +288,9 @@ def sample_posterior(
         return np.where(np.isnan(v), -np.inf, v)
 
     starts = _starts(f, log_prob, x0, args, cov0, nwalkers, n_ensembles, seed, init_scale)
-    kept, lps, acc, wall = _run_emcee(f, starts, x0.size, nsteps, burn, thin, moves, progress)
+    kept, lps, acc, wall = _run_emcee(f, starts, x0.size, nsteps, burn, thin, moves, bool(progress))
+    if callable(progress):
+        progress("posterior diagnostics: autocorrelation times, ESS and R-hat per parameter")
     kept, lps, thin, tau, tau_max, reliable, ess, rhat = _diagnose(
         np.stack(kept), np.stack(lps), thin, thin_spec, tau_factor
     )  # kept: (K, S, W, d)

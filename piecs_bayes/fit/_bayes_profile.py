@@ -354,7 +354,7 @@ def fit_profile_bayes(
     nwalkers: int | None = None,
     n_ensembles: int = 4,
     seed: int = 0,
-    progress: bool = True,
+    progress=True,
     on_fail: str = "warn",
     moves: str | None = "de",
     part: str | None = None,

@@ -204,7 +204,7 @@ def bayes_study(
     nsteps: int | None = None,
     n_ensembles: int | None = None,
     seed: int = 0,
-    progress: bool = True,
+    progress=True,
     on_fail: str = "warn",
 ):
     """Bayesian fit of one part: deviations plus the study's error sources.

@@ -228,7 +228,7 @@ def _step_bayes(run: _Run, bayes: bool, nsteps, seed) -> None:
     steps = run.study.fit.bayes_steps if nsteps is None else nsteps
     run.say(
         f"sampling the posterior (emcee, {run.study.fit.bayes_ensembles} ensembles x {steps} "
-        "steps), then its diagnostics (tau, R-hat, ESS: a few seconds after the last bar)"
+        "steps)"
     )
     fit = None
     with run.timed("bayes"), warnings.catch_warnings(record=True) as ws:
@@ -236,7 +236,7 @@ def _step_bayes(run: _Run, bayes: bool, nsteps, seed) -> None:
         try:
             fit = bayes_study(
                 run.study, run.fit, run.probe, part=run.fit.part, nsteps=nsteps, seed=seed,
-                progress=run.say.bar,
+                progress=run.say if run.say.bar else False,
             )  # fmt: skip
         except PiecsError as exc:
             run.unavailable["bayes"] = str(exc)
