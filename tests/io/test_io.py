@@ -97,6 +97,16 @@ def test_tolerances_are_read_as_drawn(tmp_path):
     assert (t.tolerance_on, t.tolerance, drawn_scale(t)) == ("normal", (-0.01, 0.01), 1.0)
 
 
+def _refused_after_edit(tmp_path, old, new, pattern):
+    """The demo-like study with `old` replaced by `new` is refused with `pattern`."""
+    path = write_study(tmp_path)
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(InputError, match=pattern):
+        load_study(path)
+
+
 @pytest.mark.parametrize(
     "old, new, pattern",
     [
@@ -141,12 +151,7 @@ def test_tolerances_are_read_as_drawn(tmp_path):
     ],
 )
 def test_a_tolerance_must_say_what_it_limits(tmp_path, old, new, pattern):
-    path = write_study(tmp_path)
-    text = path.read_text()
-    assert old in text
-    path.write_text(text.replace(old, new, 1))
-    with pytest.raises(InputError, match=pattern):
-        load_study(path)
+    _refused_after_edit(tmp_path, old, new, pattern)
 
 
 def test_shipped_studies_keep_their_tolerance_band():
@@ -253,12 +258,7 @@ def test_non_connected_profile(tmp_path):
     ],
 )
 def test_bad_study_values_are_named(tmp_path, old, new, pattern):
-    path = write_study(tmp_path)
-    text = path.read_text()
-    assert old in text
-    path.write_text(text.replace(old, new, 1))
-    with pytest.raises(InputError, match=pattern):
-        load_study(path)
+    _refused_after_edit(tmp_path, old, new, pattern)
 
 
 def test_unknown_uncertainty_source_and_bad_toml(tmp_path):
