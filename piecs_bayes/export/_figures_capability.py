@@ -7,17 +7,25 @@ import math
 
 import numpy as np
 
-from ..geometry import drawn_scale
 from ._figures import _figure, _grid
 
 __all__ = ["capability_chart_figure", "capability_index_figure"]
 
+#: the drawn coordinate's symbol in axis labels
+_SIGN = {"diameter": "Ø", "radius": "R", "length": "Z"}
 
-def capability_chart_figure(cap, profile=None):
+
+def _ylabel(coordinate: str) -> str:
+    """The axis label: `deviation of Ø (µm)`, ... `normal deviation (µm)` (arcs, tapers)."""
+    sign = _SIGN.get(coordinate)
+    return "normal deviation (µm)" if sign is None else f"deviation of {sign} (µm)"
+
+
+def capability_chart_figure(cap):
     """Individuals charts of every feature's characteristic over the run, with
-    the control limits, the tolerance, flagged parts and the most likely step; with
-    the study's `profile`, every value as drawn (on the diameter for a diameter, on Z
-    for a face: `geometry.drawn_scale`), else the normal deviation."""
+    the control limits, the tolerance, flagged parts and the most likely step; every
+    value as drawn, as the study holds it (on the diameter for a diameter, on Z for a
+    face, along the normal for tapers and arcs; the axis says which)."""
     feats = list(cap.features.values())
     nrows, ncols = _grid(len(feats), 2)
     fig = _figure((11.0, 2.3 * nrows + 0.8))
@@ -29,7 +37,7 @@ def capability_chart_figure(cap, profile=None):
         fc = feats[k]
         s = fc.stability
         x = np.arange(1, len(fc.values) + 1)
-        g = 1e3 * (1.0 if profile is None else drawn_scale(profile[fc.feature]))
+        g = 1e3
         v = np.asarray(fc.values) * g
         ax.plot(x, v, "-o", ms=3, lw=0.8, color="C0")
         flagged = sorted(set(s.beyond_limits) | set(s.run_points) | set(s.trend_points))
@@ -54,14 +62,11 @@ def capability_chart_figure(cap, profile=None):
             )
         c = fc.capability
         ax.set_title(f"{fc.feature} ({fc.characteristic}): Cpk {c.cpk:.2f}, Ppk {c.ppk:.2f}")
-        on = "normal" if profile is None else profile[fc.feature].tolerance_on
-        ax.set_ylabel(f"deviation on {on} (µm)", fontsize=8)
+        ax.set_ylabel(_ylabel(fc.coordinate), fontsize=8)
         ax.set_xlabel("part (production order)", fontsize=8)
     fig.suptitle(
-        "Individuals charts: deviation per part"
-        + (" as drawn" if profile is not None else " along the normal")
-        + "; dashed: 3σ control limits "
-        "(moving range); red: tolerance; circles: flagged parts"
+        "Individuals charts: deviation per part as drawn (Ø on the diameter, Z on the axis)\n"
+        "dashed: 3σ control limits (moving range); red: tolerance; circles: flagged parts"
     )
     return fig
 

@@ -102,37 +102,48 @@ def decisions_text(table) -> str:
 
 
 def capability_json(study) -> str:
-    """capability.json (schema `piecs_bayes.capability`, docs/formats.md)."""
+    """capability.json (schema `piecs_bayes.capability`, docs/formats.md): lengths as
+    drawn (`*_drawn_mm`, on each feature's `coordinate`), with the per-part values
+    and the summary's limits and mean also as normal deviations (`*_mm`)."""
     feats = []
     for f in study.features.values():
         s = f.stability
         feats.append(
             {
                 **f.summary(),
+                "scale": f.scale,
                 "indices": f.capability.table(),
                 "sigma_method": f.capability.sigma_method,
                 "df_within": f.capability.df_within,
                 "stability": {
-                    "center_mm": s.center,
-                    "sigma_mm": s.sigma,
-                    "lcl_mm": s.lcl,
-                    "ucl_mm": s.ucl,
-                    "mr_ucl_mm": s.mr_ucl,
+                    "center_drawn_mm": s.center,
+                    "sigma_drawn_mm": s.sigma,
+                    "lcl_drawn_mm": s.lcl,
+                    "ucl_drawn_mm": s.ucl,
+                    "mr_ucl_drawn_mm": s.mr_ucl,
                     "beyond_limits": [f.parts[i] for i in s.beyond_limits],
                     "runs": [[f.parts[a], f.parts[b]] for a, b in s.runs],
                     "trends": [[f.parts[a], f.parts[b]] for a, b in s.trends],
                     "moving_range_beyond": [f.parts[i] for i in s.mr_beyond],
                     "step_before_part": f.step_part,
-                    "step_mm": s.step_size,
+                    "step_drawn_mm": s.step_size,
                     "step_t": s.step_t,
                     "findings": f.findings(),
                 },
-                "predicted": json_safe(asdict(f.predicted)),
-                "predicted_within": json_safe(asdict(f.predicted_within)),
+                "predicted": _predicted_json(f.predicted),
+                "predicted_within": _predicted_json(f.predicted_within),
                 "notes": list(f.notes),
                 "values": [
-                    {"part": p, "value_mm": float(v), "u_mm": float(u)}
-                    for p, v, u in zip(f.parts, f.values, f.u, strict=True)
+                    {
+                        "part": p,
+                        "value_drawn_mm": float(v),
+                        "u_drawn_mm": float(u),
+                        "value_mm": float(vn),
+                        "u_mm": float(un),
+                    }
+                    for p, v, u, vn, un in zip(
+                        f.parts, f.values, f.u, f.normal_values, f.normal_u, strict=True
+                    )
                 ],
             }
         )
@@ -152,30 +163,35 @@ def capability_json(study) -> str:
 
 
 def capability_text(study) -> str:
-    """Two fixed-width tables (indices; stability and prediction), then the findings."""
+    """Two fixed-width tables (indices; stability and prediction), then the findings;
+    lengths in µm as drawn (the `on` column)."""
     lvl = f"{study.confidence:.0%}"
     h1 = (
-        f"{'feature':<10}{'n':>3}{'mean um':>9}{'s_w um':>8}{'s_o um':>8}"
-        f"{'Cp':>7}{f'[{lvl} CI]':>15}{'Cpk':>7}{f'[{lvl} CI]':>15}"
+        f"{'feature':<10}{'on':<9}{'n':>3}{'mean um':>9}{'tol um':>13}{'s_w um':>8}"
+        f"{'s_o um':>8}{'Cp':>7}{f'[{lvl} CI]':>15}{'Cpk':>7}{f'[{lvl} CI]':>15}"
         f"{'Pp':>7}{f'[{lvl} CI]':>15}{'Ppk':>7}{f'[{lvl} CI]':>15}"
     )
     lines = [
-        f"Capability of {study.study!r}: {len(study.parts)} parts, fits {study.method}; "
-        "values: normal deviation (um) at each feature's characteristic point",
+        f"Capability of {study.study!r}: {len(study.parts)} parts, fits {study.method}. "
+        "Values as drawn (um): on the diameter for diameters, on Z for faces, along the "
+        "normal for tapers and arcs, at each feature's characteristic point; tol: the "
+        "tolerance on the same coordinate.",
         h1,
         "-" * len(h1),
     ]
     for f in study.features.values():
         c = f.capability
+        lo, hi = f.tolerance
         lines.append(
-            f"{f.feature:<10}{c.n:>3}{c.mean * 1e3:>+9.2f}{c.sigma_within * 1e3:>8.2f}"
+            f"{f.feature:<10}{f.coordinate:<9}{c.n:>3}{c.mean * 1e3:>+9.2f}"
+            f"{f'[{lo * 1e3:+g},{hi * 1e3:+g}]':>13}{c.sigma_within * 1e3:>8.2f}"
             f"{c.sigma_overall * 1e3:>8.2f}{c.cp:>7.2f}{_ci(c.cp_ci):>15}{c.cpk:>7.2f}"
             f"{_ci(c.cpk_ci):>15}{c.pp:>7.2f}{_ci(c.pp_ci):>15}{c.ppk:>7.2f}"
             f"{_ci(c.ppk_ci):>15}"
         )
     h2 = (
         f"{'feature':<10}{'Bayes Cp':>9}{f'[{lvl} CrI]':>15}{'Bayes Cpk':>10}"
-        f"{f'[{lvl} CrI]':>15}{'P(>1.33)':>9}  {'stability':<25}{'Cpk after':>10}"
+        f"{f'[{lvl} CrI]':>15}{'P(>1.33)':>9}  {'stability':<27}{'Cpk after':>10}"
         f"{f'[{lvl} CI]':>15}{'if stable':>10}{f'[{lvl} CI]':>15}"
     )
     lines += ["", h2, "-" * len(h2)]
@@ -193,7 +209,7 @@ def capability_text(study) -> str:
             else f"{'-':>58}"
         )
         lines.append(
-            f"{f.feature:<10}{bayes}  {stab:<25}{p.cpk:>10.2f}{_ci(p.cpk_ci):>15}"
+            f"{f.feature:<10}{bayes}  {stab:<27}{p.cpk:>10.2f}{_ci(p.cpk_ci):>15}"
             f"{pw.cpk:>10.2f}{_ci(pw.cpk_ci):>15}"
         )
     lines += [
@@ -237,6 +253,14 @@ def capability_csvs(study) -> dict[str, str]:
         "capability_summary.csv": to_csv(study.summary_rows()),
         "capability_parts.csv": to_csv(study.part_rows()),
     }
+
+
+def _predicted_json(p) -> dict:
+    """A predicted capability for JSON, its lengths named as drawn (`*_drawn_mm`)."""
+    d = asdict(p)
+    for key in ("offset", "u_offset", "mean_after", "sigma"):
+        d[f"{key}_drawn_mm"] = d.pop(key)
+    return json_safe(d)
 
 
 def _ci(iv) -> str:

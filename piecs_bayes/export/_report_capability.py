@@ -3,22 +3,27 @@ Bayesian Cpk, stability findings and the charts."""
 
 from __future__ import annotations
 
-from ..geometry import drawn_scale
 from ._figures_capability import capability_chart_figure, capability_index_figure
 from ._report_model import _ci, _f, _Fig, _Para, _Pre, _Table
 
+#: the drawn coordinate in a table cell
+_ON = {"diameter": "Ø", "radius": "R", "length": "Z", "normal": "normal"}
 
-def _index_row(fc, k: float) -> list[str]:
-    """A feature's classical indices with their confidence intervals (lengths as drawn:
-    `k` times the normal deviation)."""
+
+def _index_row(fc) -> list[str]:
+    """A feature's classical indices with their confidence intervals (lengths in µm as
+    drawn, on the feature's coordinate)."""
     c = fc.capability
+    lo, hi = fc.tolerance
     return [
         fc.feature,
+        _ON.get(fc.coordinate, fc.coordinate),
         fc.characteristic,
         str(c.n),
-        _f(c.mean, "+.2f", 1e3 * k),
-        _f(c.sigma_within, ".2f", 1e3 * abs(k)),
-        _f(c.sigma_overall, ".2f", 1e3 * abs(k)),
+        f"{lo * 1e3:+g} … {hi * 1e3:+g}",
+        _f(c.mean, "+.2f"),
+        _f(c.sigma_within, ".2f"),
+        _f(c.sigma_overall, ".2f"),
         f"{c.cp:.2f} {_ci(c.cp_ci)}",
         f"{c.cpk:.2f} {_ci(c.cpk_ci)}",
         f"{c.pp:.2f} {_ci(c.pp_ci)}",
@@ -47,8 +52,7 @@ def _capability_section(res) -> list:
     if cap is None:
         why = res.unavailable.get("capability", "switched off")
         return [_Para(f"No capability study: {why}", "note")]
-    prof = res.study.profile
-    rows = [_index_row(fc, drawn_scale(prof[fc.feature])) for fc in cap.features.values()]
+    rows = [_index_row(fc) for fc in cap.features.values()]
     rows2 = [_after_row(fc) for fc in cap.features.values()]
     lvl = f"{cap.confidence:.0%}"
     findings = []
@@ -64,14 +68,17 @@ def _capability_section(res) -> list:
         _Para(
             f"{len(cap.parts)} parts ({cap.parts[0]} … {cap.parts[-1]}), fits {cap.method}; "
             "values: the deviation at each feature's characteristic point, as drawn (on the "
-            "diameter for diameters, on Z for faces, along the normal for tapers and arcs)."
+            "diameter Ø for diameters, on Z for faces, along the normal for tapers and arcs), "
+            "with the tolerance on the same coordinate."
         ),
         _Table(
             [
                 "feature",
+                "on",
                 "at",
                 "n",
-                "mean (µm, as drawn)",
+                "tolerance (µm)",
+                "mean (µm)",
                 "σ within (µm)",
                 "σ overall (µm)",
                 f"Cp [{lvl} CI]",
@@ -108,7 +115,7 @@ def _capability_section(res) -> list:
     blocks += [
         _Fig(
             "capability_chart",
-            lambda: capability_chart_figure(cap, res.study.profile),
+            lambda: capability_chart_figure(cap),
             "Individuals charts over the run (production order) with control limits, "
             "tolerance and the most likely step.",
         ),

@@ -1,11 +1,17 @@
 """What the process is capable of over a run of parts: capability, stability and the
 capability predicted after compensation, per feature.
 
-Per part and feature the value is the characteristic (normal deviation at a fixed
-nominal point, `piecs_bayes.uncertainty.feature_characteristic`); the parts are
+Per part and feature the value is the characteristic (normal deviation $\\delta$ at a
+fixed nominal point, `piecs_bayes.uncertainty.feature_characteristic`); the parts are
 fitted in batches ([`capability_values`][piecs_bayes.jobs.capability_values], also
-on Dask) or, for joint fits, one by one. `export.capability_json` and
-`capability_text` render the study.
+on Dask) or, for joint fits, one by one. The study works on each feature's deviation
+**as drawn** (`tolerance_on`: $2\\delta$ on a diameter, $\\pm\\delta$ on Z for a face,
+$\\delta$ along the normal for tapers and arcs; `geometry.drawn_scale`), with the
+tolerance as drawn: the values, limits, means, sigmas, control limits and steps are
+lengths on that coordinate. Cp, Cpk, Pp, Ppk are invariant to the conversion (a scale
+$k$ multiplies the values and the limits alike; with $k < 0$, a bore's diameter or a
+face facing -Z, the lower and upper limits trade places, and so do Cpl and Cpu).
+`export.capability_json` and `capability_text` render the study.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from ..compensate import (
 )
 from ..errors import AnalysisError, InputError
 from ..fit import CHUNK_PARTS
+from ..geometry import drawn_scale
 from ..io import rows_to_dataframe
 from ..uncertainty import feature_characteristic
 from ._batch import capability_values
@@ -51,6 +58,11 @@ class FeatureCapability:
     capability after shifting the mean by `-gain * (mean - target)` with the
     overall spread kept, `predicted_within` the same with the within-part
     (moving-range) spread, i.e. if compensation also removed the drift and steps.
+
+    Every length (`values`, `u`, `tolerance` and those of `capability`, `stability`,
+    `predicted`) is as drawn: on `coordinate` (`"diameter"`, `"radius"`, `"length"`
+    or `"normal"`), `scale` times the normal deviation; `normal_values`,
+    `normal_u` and `normal_tolerance` give them back as normal deviations.
     """
 
     feature: str
@@ -65,6 +77,33 @@ class FeatureCapability:
     predicted_within: PredictedCapability
     gain: float
     notes: tuple[str, ...] = ()
+    coordinate: str = "normal"
+    scale: float = 1.0
+
+    @property
+    def normal_values(self) -> np.ndarray:
+        """The values as normal deviations (mm): `values / scale`."""
+        return self.values / self.scale
+
+    @property
+    def normal_u(self) -> np.ndarray:
+        """The measurement uncertainties of the normal deviations (mm)."""
+        return self.u / abs(self.scale)
+
+    @property
+    def normal_tolerance(self) -> tuple[float, float]:
+        """The tolerance as limits of the normal deviation (mm), ordered."""
+        lo, hi = sorted(v / self.scale for v in self.tolerance)
+        return float(lo), float(hi)
+
+    @property
+    def drawn_as(self) -> str:
+        """The coordinate in words: "on the diameter", "on Z", "along the normal", ..."""
+        return _ON_WORDS.get(self.coordinate, f"on the {self.coordinate}")
+
+    def as_normal(self, x: float) -> float:
+        """A length as drawn (a value, mean or step) as a normal deviation."""
+        return float(x) / self.scale
 
     @property
     def step_part(self) -> str | None:
@@ -77,11 +116,12 @@ class FeatureCapability:
     def findings(self) -> list[str]:
         """The stability check's findings, by part id (production order)."""
         s, ids = self.stability, self.parts
-        out = []
+        out, on = [], self.drawn_as
         if s.beyond_limits:
             out.append(
                 f"{len(s.beyond_limits)} part(s) beyond the 3-sigma limits "
-                f"[{s.lcl * 1e3:+.2f}, {s.ucl * 1e3:+.2f}] um: {_spans(s.beyond_limits, ids)}"
+                f"[{s.lcl * 1e3:+.2f}, {s.ucl * 1e3:+.2f}] um {on}: "
+                f"{_spans(s.beyond_limits, ids)}"
             )
         for a, b in s.runs:
             out.append(
@@ -93,7 +133,7 @@ class FeatureCapability:
             out.append(f"moving range above its limit at {_spans(s.mr_beyond, ids)}")
         if self.step_part:
             out.append(
-                f"likely step of {s.step_size * 1e3:+.2f} um before {self.step_part} "
+                f"likely step of {s.step_size * 1e3:+.2f} um {on} before {self.step_part} "
                 f"(t = {s.step_t:.1f})"
             )
         return out
@@ -112,17 +152,22 @@ class FeatureCapability:
         return "; ".join(out)
 
     def summary(self) -> dict:
+        """One row: the coordinate, the lengths as drawn (`*_drawn_mm`), the indices,
+        stability and prediction, then the lengths as normal deviations (`*_mm`)."""
         c, b, s = self.capability, self.capability.bayes, self.stability
+        k = abs(self.scale)
+        gauge = float(np.sqrt(np.mean(self.u**2)))
         row = {
             "feature": self.feature,
             "at": self.characteristic,
+            "coordinate": self.coordinate,
             "n": c.n,
-            "lsl_mm": c.lsl,
-            "usl_mm": c.usl,
-            "mean_mm": c.mean,
-            "sigma_within_mm": c.sigma_within,
-            "sigma_overall_mm": c.sigma_overall,
-            "gauge_sd_mm": float(np.sqrt(np.mean(self.u**2))),
+            "lsl_drawn_mm": c.lsl,
+            "usl_drawn_mm": c.usl,
+            "mean_drawn_mm": c.mean,
+            "sigma_within_drawn_mm": c.sigma_within,
+            "sigma_overall_drawn_mm": c.sigma_overall,
+            "gauge_sd_drawn_mm": gauge,
         }
         for name in ("cp", "cpk", "pp", "ppk"):
             ci = getattr(c, f"{name}_ci")
@@ -136,7 +181,8 @@ class FeatureCapability:
         row["in_control"] = s.in_control
         row["n_out_of_control"] = len(s.out_of_control)
         row["step_part"] = self.step_part or ""
-        row["step_mm"] = s.step_size if self.step_part else math.nan
+        step = s.step_size if self.step_part else math.nan
+        row["step_drawn_mm"] = step
         row["step_t"] = s.step_t
         row["gain"] = self.gain
         for tag, p in (("after", self.predicted), ("after_within", self.predicted_within)):
@@ -144,6 +190,12 @@ class FeatureCapability:
             row[f"cpk_{tag}_lower"], row[f"cpk_{tag}_upper"] = p.cpk_ci
             row[f"bayes_cpk_{tag}"] = p.cpk_bayes
             row[f"bayes_cpk_{tag}_lower"], row[f"bayes_cpk_{tag}_upper"] = p.cpk_bayes_interval
+        row["lsl_mm"], row["usl_mm"] = self.normal_tolerance
+        row["mean_mm"] = self.as_normal(c.mean)
+        row["sigma_within_mm"] = c.sigma_within / k
+        row["sigma_overall_mm"] = c.sigma_overall / k
+        row["gauge_sd_mm"] = gauge / k
+        row["step_mm"] = self.as_normal(step) if self.step_part else math.nan
         return row
 
     def __repr__(self) -> str:
@@ -151,7 +203,8 @@ class FeatureCapability:
         state = "in control" if s.in_control else "NOT in control"
         step = f", step before {self.step_part}" if self.step_part else ""
         return (
-            f"FeatureCapability({self.feature!r} at {self.characteristic}, n={c.n}, "
+            f"FeatureCapability({self.feature!r} at {self.characteristic} on "
+            f"{self.coordinate}, n={c.n}, "
             f"Cp {c.cp:.2f} {c.cp_ci!r}, Cpk {c.cpk:.2f} {c.cpk_ci!r}, Ppk {c.ppk:.2f}, "
             f"{state}{step}, Cpk after compensation {self.predicted.cpk:.2f})"
         )
@@ -181,7 +234,8 @@ class CapabilityStudy:
         return {p: tuple(v) for p, v in out.items()}
 
     def summary_rows(self) -> list[dict]:
-        """One row per feature: limits, mean, sigmas, indices, stability, prediction."""
+        """One row per feature: limits, mean, sigmas (as drawn), indices, stability,
+        prediction, then the lengths as normal deviations."""
         return [f.summary() for f in self.features.values()]
 
     def to_dataframe(self, table: str = "summary"):
@@ -195,16 +249,18 @@ class CapabilityStudy:
         return rows_to_dataframe(tables[table]())
 
     def index_rows(self) -> list[dict]:
-        """One row per feature and index (value, confidence and credible intervals)."""
+        """One row per feature and index (value, confidence and credible intervals);
+        Cpl and Cpu are those of the lower and upper limits as drawn."""
         out = []
         for f in self.features.values():
             for r in f.capability.table():
-                out.append({"feature": f.feature, **r})
+                out.append({"feature": f.feature, "coordinate": f.coordinate, **r})
             for tag, p in (("after", f.predicted), ("after_within", f.predicted_within)):
                 lo_b, hi_b = p.cpk_bayes_interval
                 out.append(
                     {
                         "feature": f.feature,
+                        "coordinate": f.coordinate,
                         "index": f"cpk_{tag}",
                         "value": p.cpk,
                         "lower": p.cpk_ci.lower,
@@ -217,22 +273,32 @@ class CapabilityStudy:
         return out
 
     def part_rows(self) -> list[dict]:
-        """One row per part and feature: value, uncertainty, control-chart flags."""
+        """One row per part and feature: value, uncertainty, moving range and control
+        limits as drawn (`*_drawn_mm`), the flags, then the same as normal deviations."""
         out = []
         for f in self.features.values():
-            s = f.stability
+            s, k = f.stability, f.scale
+            lcl, ucl = sorted((s.lcl / k, s.ucl / k))
             for i, (p, v, u) in enumerate(zip(f.parts, f.values, f.u, strict=True)):
+                mr = float(abs(v - f.values[i - 1])) if i else math.nan
                 out.append(
                     {
                         "part": p,
                         "feature": f.feature,
-                        "value_mm": float(v),
-                        "u_mm": float(u),
-                        "moving_range_mm": float(abs(v - f.values[i - 1])) if i else math.nan,
-                        "center_mm": s.center,
-                        "lcl_mm": s.lcl,
-                        "ucl_mm": s.ucl,
+                        "coordinate": f.coordinate,
+                        "value_drawn_mm": float(v),
+                        "u_drawn_mm": float(u),
+                        "moving_range_drawn_mm": mr,
+                        "center_drawn_mm": s.center,
+                        "lcl_drawn_mm": s.lcl,
+                        "ucl_drawn_mm": s.ucl,
                         "flags": f.flags(i),
+                        "value_mm": f.as_normal(v),
+                        "u_mm": float(u) / abs(k),
+                        "moving_range_mm": mr / abs(k),
+                        "center_mm": f.as_normal(s.center),
+                        "lcl_mm": lcl,
+                        "ucl_mm": ucl,
                     }
                 )
         return out
@@ -242,6 +308,11 @@ class CapabilityStudy:
             f"CapabilityStudy({self.study!r}: {len(self.parts)} parts, "
             f"{len(self.features)} features, fits {self.method})"
         )
+
+
+#: the coordinate of a drawn length, in words
+_ON_WORDS = {"diameter": "on the diameter", "radius": "on the radius", "length": "on Z",
+             "normal": "along the normal"}  # fmt: skip
 
 
 def _spans(idx, ids) -> str:
@@ -259,8 +330,9 @@ def _spans(idx, ids) -> str:
 
 def capability_from_values(
     values: Mapping[str, Sequence[float]],
-    tolerances: Mapping[str, tuple[float, float]],
+    tolerances: Mapping[str, tuple[float, float]] | None = None,
     *,
+    profile=None,
     parts: Mapping[str, Sequence[str]] | Sequence[str] | None = None,
     u: Mapping[str, Sequence[float]] | None = None,
     u_systematic: Mapping[str, float] | None = None,
@@ -285,6 +357,12 @@ def capability_from_values(
     - `values`: by feature id, one value per part in production order (mm), e.g.
       normal deviations or posterior means.
     - `tolerances`: `(lower, upper)` by feature id; the target is the mid-point.
+      With `profile` they limit the normal deviation (`Feature.tolerance`, the
+      default), else the values as given.
+    - `profile`: the study's profile (features by id): `values`, `u`, `u_systematic`
+      and `tolerances` are normal deviations and are studied as drawn, each on its
+      feature's `tolerance_on` (`geometry.drawn_scale`: twice the value on a
+      diameter, ...). Without it they are studied as given (coordinate `"normal"`).
     - `parts`: part ids (one list for all features, or by feature).
     - `u`: per-part measurement uncertainties by feature (the gauge spread; subtracted
       from the variances only with `subtract_gauge`).
@@ -292,10 +370,13 @@ def capability_from_values(
     - `gain`: fraction of the mean error the predicted compensation removes.
     - the rest: see `compensate.capability` and `compensate.stability_check`.
     """
+    if tolerances is None and profile is None:
+        raise InputError("capability_from_values needs the tolerances or the profile")
     feats = {}
     notes = list(notes)
     for fid, vals in values.items():
-        y = np.asarray(vals, dtype=float)
+        on, k, tol = _drawn(fid, profile, tolerances)
+        y = k * np.asarray(vals, dtype=float)
         if isinstance(parts, Mapping):
             pid = tuple(parts[fid])
         elif parts is not None:
@@ -304,15 +385,16 @@ def capability_from_values(
             pid = tuple(f"{i + 1}" for i in range(y.size))
         if len(pid) != y.size:
             raise InputError(f"{len(pid)} part ids for {y.size} values", feature=fid)
-        uu = np.zeros(y.size) if u is None or fid not in u else np.asarray(u[fid], dtype=float)
+        uu = abs(k) * (np.zeros(y.size) if u is None or fid not in u else np.asarray(u[fid]))
         if y.size < 3:
             notes.append(f"{fid}: only {y.size} value(s); no capability")
             continue
         try:
             feats[fid] = _feature_capability(
-                fid, y, pid, uu, tolerances[fid], float((u_systematic or {}).get(fid, 0.0)),
-                characteristic=characteristic, gain=gain, confidence=confidence,
-                threshold=threshold, sigma_method=sigma_method, subtract_gauge=subtract_gauge,
+                fid, y, pid, uu, tol, abs(k) * float((u_systematic or {}).get(fid, 0.0)),
+                coordinate=on, scale=k, characteristic=characteristic, gain=gain,
+                confidence=confidence, threshold=threshold, sigma_method=sigma_method,
+                subtract_gauge=subtract_gauge,
                 n_draws=n_draws, run_length=run_length, trend_length=trend_length, seed=seed,
             )  # fmt: skip
         except AnalysisError as e:
@@ -328,12 +410,30 @@ def capability_from_values(
     )
 
 
+def _drawn(fid: str, profile, tolerances) -> tuple[str, float, tuple[float, float]]:
+    """`(coordinate, scale, tolerance as drawn)` of feature `fid` (see
+    [`capability_from_values`][]); without a profile the values are taken as given."""
+    if profile is None:
+        if fid not in tolerances:
+            raise InputError("no tolerance for this feature", feature=fid)
+        return "normal", 1.0, tuple(float(v) for v in tolerances[fid])
+    try:
+        feat = profile[fid]
+    except (KeyError, ValueError, IndexError):
+        raise InputError("not a feature of the profile", feature=fid) from None
+    k = drawn_scale(feat)
+    lo, hi = tolerances[fid] if tolerances and fid in tolerances else feat.tolerance
+    return feat.tolerance_on, k, tuple(sorted((k * float(lo), k * float(hi))))
+
+
 def _feature_capability(
-    fid, y, pid, uu, tolerance, u_off, *, characteristic, gain, confidence, threshold,
-    sigma_method, subtract_gauge, n_draws, run_length, trend_length, seed,
+    fid, y, pid, uu, tolerance, u_off, *, coordinate, scale, characteristic, gain,
+    confidence, threshold, sigma_method, subtract_gauge, n_draws, run_length,
+    trend_length, seed,
 ) -> FeatureCapability:  # fmt: skip
     """One feature's capability, stability and predicted capability (see
-    [`capability_from_values`][]); `AnalysisError` when the indices cannot be had."""
+    [`capability_from_values`][]) of the values `y` as drawn (on `coordinate`, `scale`
+    times the normal deviation); `AnalysisError` when the indices cannot be had."""
     lo, hi = tolerance
     gauge = float(np.sqrt(np.mean(uu**2))) if subtract_gauge else 0.0
     cap = capability(
@@ -368,6 +468,8 @@ def _feature_capability(
         predicted_within=predict_capability(cap, sigma="within", **kw),
         gain=float(gain),
         notes=tuple(fnotes),
+        coordinate=coordinate,
+        scale=float(scale),
     )
 
 
@@ -400,7 +502,7 @@ def capability_study(
     - `overrides`: any keyword of [`capability_from_values`][] (default: the study's
       `[capability]` table).
 
-    **Returns:** a [`CapabilityStudy`][].
+    **Returns:** a [`CapabilityStudy`][], each feature as drawn (its `tolerance_on`).
     """
     probe = probe if probe is not None else load_probe_data(study, files)
     cfg = {**study.capability, **overrides}
@@ -437,6 +539,7 @@ def capability_study(
     return capability_from_values(
         {fid: values[fid] for fid in ordered},
         {f.id: f.tolerance for f in study.profile.features},
+        profile=study.profile,
         parts={fid: pids[fid] for fid in ordered},
         u={fid: us[fid] for fid in ordered},
         u_systematic=usys,

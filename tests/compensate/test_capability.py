@@ -264,3 +264,29 @@ def test_stability_limits_and_rules_on_known_values():
     trend = stability_check([5.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 0.0, 5.0])
     assert trend.trends == ((1, 7),)
     assert "OUT OF CONTROL" in repr(trend)
+
+
+@pytest.mark.parametrize("k", [2.0, -2.0, -1.0])
+def test_indices_do_not_change_with_the_drawn_scale(k):
+    # tolerances as drawn (issue 15): a diameter is 2x the normal deviation, a bore's
+    # diameter -2x, a face facing -Z -1x; scaling the values and the limits together
+    # keeps Cp, Cpk, Pp, Ppk, Cpm (a negative scale swaps the limits, and Cpl with Cpu)
+    rng = np.random.default_rng(15)
+    y = rng.normal(0.003, 0.002, 30)
+    lo, hi = -0.004, 0.010
+    a = capability(y, lo, hi, n_draws=100_000)
+    b = capability(k * y, *sorted((k * lo, k * hi)), n_draws=100_000)
+    for name in ("cp", "cpk", "pp", "ppk", "cpm"):
+        assert getattr(b, name) == pytest.approx(getattr(a, name), rel=1e-12), name
+        ci_a, ci_b = tuple(getattr(a, f"{name}_ci")), tuple(getattr(b, f"{name}_ci"))
+        assert ci_b == pytest.approx(ci_a, rel=1e-12), name
+    lower, upper = ("cpu", "cpl") if k < 0 else ("cpl", "cpu")
+    assert (b.cpl, b.cpu) == pytest.approx((getattr(a, lower), getattr(a, upper)), rel=1e-12)
+    assert b.mean == pytest.approx(k * a.mean, rel=1e-12)
+    assert b.sigma_within == pytest.approx(abs(k) * a.sigma_within, rel=1e-12)
+    # Bayesian: Cp in closed form; Cpk from draws that mirror with the sign (Monte Carlo)
+    assert b.bayes.cp == pytest.approx(a.bayes.cp, rel=1e-12)
+    assert b.bayes.cpk == pytest.approx(a.bayes.cpk, rel=5e-3)
+    p, q = predict_capability(a, u_offset=2e-4), predict_capability(b, u_offset=abs(k) * 2e-4)
+    assert q.cpk == pytest.approx(p.cpk, rel=1e-12)
+    assert q.mean_after == pytest.approx(k * p.mean_after, abs=1e-15)

@@ -338,11 +338,13 @@ def test_capability_over_the_batch_finds_the_tool_change(batch):
     assert p.mean_after == pytest.approx(0.0, abs=1e-12)
     assert p.cpk > c.ppk and p.cpk_ci.lower < p.cpk < p.cpk_ci.upper
     assert f.predicted_within.cpk == pytest.approx(c.cp, rel=1e-9)
-    # the measured characteristic follows the truth (offset at the mid-point)
+    # the measured characteristic follows the truth (offset at the mid-point), on the
+    # normal deviation; as drawn it is the diameter: twice as much
     z = [
         (v - t["deviations"]["dia_24"]["offset"]) / u
-        for v, u, t in zip(f.values, np.hypot(f.u, 0.0), truth["parts"], strict=True)
+        for v, u, t in zip(f.normal_values, f.normal_u, truth["parts"], strict=True)
     ]
+    np.testing.assert_allclose(f.values, 2.0 * np.asarray(f.normal_values), rtol=1e-12)
     assert np.median(np.abs(z)) < 1.5 and np.max(np.abs(z)) < 5.0
     doc = json.loads(E.capability_json(cs))
     assert doc["schema"] == "piecs_bayes.capability" and doc["steps"][change]
