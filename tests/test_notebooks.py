@@ -34,10 +34,11 @@ def _execute(nb, cwd: Path, timeout: float):
     return client.execute()
 
 
-def test_the_four_notebooks_are_there():
+def test_the_five_notebooks_are_there():
     names = [p.name for p in ALL]
-    assert len(names) == 4, names
-    for key in ("quick_start", "robust_bayes_linearised", "capability", "nose_compensation"):
+    assert len(names) == 5, names
+    keys = ("quick_start", "robust_bayes_linearised", "capability", "nose_compensation", "feedback")
+    for key in keys:
         assert any(key in n for n in names), key
 
 

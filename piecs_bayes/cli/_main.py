@@ -8,7 +8,7 @@ import os
 import sys
 
 from ..errors import AnalysisError, InputError
-from . import _decide, _fit, _gcode, _report
+from . import _decide, _feedback, _fit, _gcode, _report
 from ._common import Console
 
 __all__ = ["build_parser", "main"]
@@ -29,7 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    for module in (_fit, _decide, _gcode, _report):
+    for module in (_fit, _decide, _gcode, _report, _feedback):
         module.register(sub)
     return parser
 

@@ -1,12 +1,20 @@
 """Renders and writes what the jobs return: results tables, decisions and capability,
 error-spec files, LinuxCNC tables, tool offsets, figures, reports. Never re-fits."""
 
+from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._errspec import errspec_texts as errspec_texts
 from ._errspec import read_errspec as read_errspec
 from ._errspec import write_errspec as write_errspec
+from ._feedback import feedback_csvs as feedback_csvs
+from ._feedback import feedback_json as feedback_json
+from ._feedback import feedback_text as feedback_text
+from ._feedback import write_feedback as write_feedback
 from ._figures_budget import budget_figure as budget_figure
 from ._figures_capability import capability_chart_figure as capability_chart_figure
 from ._figures_capability import capability_index_figure as capability_index_figure
+from ._figures_feedback import feedback_figures as feedback_figures
+from ._figures_feedback import feedback_policy_figure as feedback_policy_figure
+from ._figures_feedback import feedback_track_figure as feedback_track_figure
 from ._figures_posterior import corner_figure as corner_figure
 from ._figures_posterior import diagnostics_figure as diagnostics_figure
 from ._figures_posterior import trace_figure as trace_figure
@@ -33,6 +41,8 @@ from ._offsets import g10_linuxcnc as g10_linuxcnc
 from ._offsets import offsets_from_json as offsets_from_json
 from ._offsets import offsets_to_json as offsets_to_json
 from ._report import report_files as report_files
+from ._report_feedback import feedback_blocks as feedback_blocks
+from ._report_feedback import feedback_report_html as feedback_report_html
 from ._report_html import report_html as report_html
 from ._report_html import summary_html as summary_html
 from ._report_pdf import report_pdf as report_pdf

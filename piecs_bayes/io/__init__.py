@@ -1,14 +1,22 @@
 """Read and validate what the user brings (study files, probe CSVs; programs: `gcode`),
 and write files atomically, never over an input."""
 
+from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._atomic import write_bytes_atomic as write_bytes_atomic
 from ._atomic import write_file_atomic as write_file_atomic
 from ._atomic import write_text_atomic as write_text_atomic
+from ._feedback_section import FEEDBACK_KEYS as FEEDBACK_KEYS
+from ._feedback_section import FEEDBACK_POLICIES as FEEDBACK_POLICIES
+from ._finish import FINISH_COLUMNS as FINISH_COLUMNS
+from ._finish import FinishData as FinishData
+from ._finish import read_finish_csv as read_finish_csv
+from ._finish import read_finish_files as read_finish_files
 from ._frames import rows_to_dataframe as rows_to_dataframe
 from ._plausibility import PlausibilityWarning as PlausibilityWarning
 from ._plausibility import check_probe_data as check_probe_data
 from ._probe import ProbeData as ProbeData
 from ._probe import read_probe_csv as read_probe_csv
+from ._probe import read_probe_csv_by_rows as read_probe_csv_by_rows
 from ._settings import APPLY_ROUTES as APPLY_ROUTES
 from ._settings import CompensationSettings as CompensationSettings
 from ._settings import FitSettings as FitSettings

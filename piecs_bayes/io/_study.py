@@ -19,6 +19,7 @@ from pathlib import Path
 from types import MappingProxyType
 
 from ..errors import InputError
+from ._feedback_section import FEEDBACK_KEYS, read_feedback
 from ._job_sections import JOB_KEYS, read_job_section, read_plausibility, read_program_settings
 from ._reader import Reader
 from ._schema import check_keys
@@ -84,7 +85,7 @@ def load_study(path) -> Study:
     path = Path(path)
     name = str(path)
     tree = _parse(path)
-    check_keys(tree, name, JOB_KEYS)
+    check_keys(tree, name, {**JOB_KEYS, "feedback": FEEDBACK_KEYS})
     r = Reader(name)
     study = r.table(tree, "study", "", required=True)
     encoding = check_encoding(study.get("encoding", "utf-8"), file=name)
@@ -106,6 +107,8 @@ def load_study(path) -> Study:
     }
     known = _CORE_SECTIONS | {"program", *job}
     extra = {k: v for k, v in tree.items() if k not in known}
+    if "feedback" in extra:  # [feedback]: read by jobs.feedback_study from `sections`
+        extra["feedback"] = read_feedback(r, r.table(tree, "feedback", ""), path.parent)
     plausibility = read_plausibility(r, r.table(tree, "plausibility", ""), scale)
     return Study(
         path=path,

@@ -17,6 +17,7 @@ study and returns immutable data; `piecs_bayes.export` renders and writes it.
   spec or tool offset; never two).
 """
 
+from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._apply import APPLY_ROUTES as APPLY_ROUTES
 from ._apply import apply_route as apply_route
 from ._batch import CapabilityJob as CapabilityJob
@@ -35,6 +36,10 @@ from ._decide import DecisionTable as DecisionTable
 from ._decide import characteristics as characteristics
 from ._decide import decide_features as decide_features
 from ._decide import decide_study as decide_study
+from ._feedback import FeatureFeedback as FeatureFeedback
+from ._feedback import FeedbackResult as FeedbackResult
+from ._feedback import feedback_from_values as feedback_from_values
+from ._feedback import feedback_study as feedback_study
 from ._fit import adjust_study_program as adjust_study_program
 from ._fit import bayes_study as bayes_study
 from ._fit import compensate_study as compensate_study
@@ -56,3 +61,5 @@ from ._options import source_sds as source_sds
 from ._results import InputFile as InputFile
 from ._results import JobResults as JobResults
 from ._results import package_versions as package_versions
+from ._simulate_finish import FINISH_DEFAULTS as FINISH_DEFAULTS
+from ._simulate_finish import write_finish as write_finish
