@@ -21,7 +21,7 @@ demo: $(STAMP)
 	$(BIN)/piecs-bayes demo data/demo/study.toml --out reports/demo
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2
 
 # Peer agreement with LinuxCNC's rs274 (Debian package linuxcnc-uspace): installs
 # it when missing, then runs the tests marked rs274 (they fail here if it is absent).

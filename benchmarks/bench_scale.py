@@ -22,7 +22,8 @@ machine slows both sides alike):
 - (d) NumPyro NUTS on the same posterior (skipped when numpyro is missing);
 - (e) `piecs-bayes fit data/demo/study.toml`: cold (empty cache), warm (persistent
   compilation cache), without the cache; import times;
-- (f) cost against points per feature and against number of parts (a table and a
+- (f) cost against points per feature (8 to 4,096, per fit and per point, beside the
+  SciPy loop on the same parts) and against number of parts (tables and a
   log-log plot written to `--plot`, default `reports/bench_scaling.png`).
 """
 
@@ -378,7 +379,8 @@ def section_cd(args):
     print(f"\n## (c) emcee: JAX vs NumPy log posterior; lockstep ensembles\n\n{load()}\n")
     log_prob, pargs, x0, names, np_lp = _posterior()
     d = len(x0)
-    from piecs_bayes.fit._bayes import _neg_hessian, _sqrt_psd, _vectorised
+    from piecs_bayes.fit._bayes import _vectorised
+    from piecs_bayes.fit._bayes_core import _neg_hessian, _sqrt_psd
 
     h = np.asarray(_neg_hessian(log_prob)(jnp.asarray(x0), pargs))
     w_, v_ = np.linalg.eigh(0.5 * (h + h.T))
@@ -576,18 +578,7 @@ def section_f(args):
     print(f"\n## (f) How the batch fit's cost grows\n\n{load()}\n")
     kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
     n_ref = 256 if args.quick else 1024
-    by_points = []
-    for k in (4, 8, 16, 32, 64, 128):
-        fleet = simulate_fleet(n_ref, seed=2, points=k)
-        c = to_part_frame(DEMO_TRANSFORM, fleet["points"])
-        t0 = time.perf_counter()
-        fit_profiles(fleet["profile"], fleet["part"], fleet["feature"], c, **kw)
-        first = time.perf_counter() - t0
-        t = timeit(
-            lambda f=fleet, c=c: fit_profiles(f["profile"], f["part"], f["feature"], c, **kw),
-            repeat=2,
-        )
-        by_points.append((k, t, first - t))
+    by_points = _points_table(args, kw)
     sizes = (10, 100, 1000) if args.quick else (10, 100, 1000, 10000)
     fleet = simulate_fleet(max(sizes), seed=3)
     c = to_part_frame(DEMO_TRANSFORM, fleet["points"])
@@ -607,10 +598,6 @@ def section_f(args):
 
         t_sp = timeit(scipy_loop, repeat=1) * n / len(sample)
         by_parts.append((n, t, t_sp))
-    rows = [[k, _ms(t), _ms(t / (n_ref * 7)), f"{comp:.1f} s"] for k, t, comp in by_points]
-    print(_table(rows, [f"points per feature ({n_ref} parts x 7 features)", "time",
-                        "per fit", "compile (bucket)"]))  # fmt: skip
-    print()
     rows = [[n, _ms(t), _ms(t / n), _ms(ts), f"{ts / t:.1f}x"] for n, t, ts in by_parts]
     print(_table(rows, ["parts (demo points)", "fit_profiles", "per part", "scipy loop", "speed"]))
     slope_p = np.polyfit(np.log([r[0] for r in by_points]), np.log([r[1] for r in by_points]), 1)[0]
@@ -622,6 +609,47 @@ def section_f(args):
     _plot(args.plot, by_points, by_parts, n_ref)
 
 
+def _points_table(args, kw):
+    """Cost per fit against points per feature (every demo feature probed with k
+    points; ~2^18 points per k, at least 16 parts), side by side with the SciPy
+    loop on a few of the same parts: `[(k, seconds per fit)]`."""
+    ks = (8, 32, 128, 512, 1024, 4096)
+    out, rows = [], []
+    for k in ks:
+        n_parts = max(16, min(256 if args.quick else 1024, (1 << (16 if args.quick else 18)) // k))
+        fleet = simulate_fleet(n_parts, seed=2, points=k)
+        c = to_part_frame(DEMO_TRANSFORM, fleet["points"])
+        a = (fleet["profile"], fleet["part"], fleet["feature"], c)
+        t0 = time.perf_counter()
+        fit = fit_profiles(*a, **kw)
+        first = time.perf_counter() - t0
+        t = timeit(lambda a=a: fit_profiles(*a, **kw), repeat=2) / (n_parts * 7)
+        sample = np.unique(fleet["part"])[: 2 if args.quick else 5]
+
+        def scipy_loop(sample=sample, fleet=fleet, c=c):
+            for p in sample:
+                m = fleet["part"] == p
+                scipy_part(fleet["profile"], fleet["feature"][m], c[m], 1.0, 1.345 * 0.0015)
+
+        t_sp = timeit(scipy_loop, repeat=1) / (len(sample) * 7)
+        lm = sum(int(np.sum(fit.steps(f.id) >= 100)) for f in fleet["profile"])
+        out.append((k, t))
+        rows.append((k, n_parts, t, t_sp, first - t * n_parts * 7, lm, fit.ok.mean()))
+    t32 = dict(out)[32] / 32
+    table = [
+        [k, n, _ms(t), f"{t / k * 1e6:.3f} us", f"{t / k / t32:.2f}", _ms(ts),
+         f"{ts / k * 1e6:.2f} us", f"{ts / t:.0f}x", f"{comp:.1f} s", lm, f"{ok:.0%}"]
+        for k, n, t, ts, comp, lm, ok in rows
+    ]  # fmt: skip
+    print(_table(table, ["points per feature", "parts", "per fit", "per point",
+                         "per point / at 32", "scipy per fit", "scipy per point", "speed",
+                         "compile (bucket)", "fits with >= 100 steps", "ok"]))  # fmt: skip
+    slope = np.polyfit(np.log([k for k, _ in out[1:]]), np.log([t for _, t in out[1:]]), 1)[0]
+    print(f"\nCost per fit ~ points^{slope:.2f} from 32 to {ks[-1]} points (robust Huber, "
+          "batch kernel; every demo feature probed with k points).\n")  # fmt: skip
+    return out
+
+
 def _plot(path, by_points, by_parts, n_ref):
     import matplotlib
 
@@ -629,10 +657,10 @@ def _plot(path, by_points, by_parts, n_ref):
     import matplotlib.pyplot as plt
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    k, t, _ = zip(*by_points, strict=True)
-    a1.loglog(k, t, "o-", label=f"fit_profiles, {n_ref} parts")
+    k, t = zip(*by_points, strict=True)
+    a1.loglog(k, t, "o-", label="fit_profiles (batch kernel)")
     a1.set_xlabel("points per feature")
-    a1.set_ylabel("wall time (s)")
+    a1.set_ylabel("wall time per fit (s)")
     a1.legend()
     n, t, ts = zip(*by_parts, strict=True)
     a2.loglog(n, t, "o-", label="fit_profiles (batched)")

@@ -7,9 +7,12 @@ Conventions (see ``docs/formats.md``): millimetres internally; the turned profil
 lives in the XZ half-plane with points stored as ``(x, z)``, x radial (radius,
 never diameter, inside the package), z along the spindle axis; feature
 parameters are deviations from nominal; float64 everywhere.
+
+Importing the package does not import JAX (``piecs-bayes --help`` answers at once):
+every subpackage that computes imports `_config` first, which switches JAX to
+float64 before any array is made.
 """
 
-from . import _config  # noqa: F401  (x64 before anything else touches jax)
 from .errors import AnalysisError, InputError, PiecsError
 
 __version__ = "0.1.0"

@@ -1,4 +1,9 @@
-"""Process-wide JAX settings, applied once when the package is imported.
+"""Process-wide JAX settings, applied once, by the first subpackage that computes.
+
+Every subpackage that uses JAX (geometry, io, gcode, fit, compensate,
+uncertainty, jobs, export) imports this module first; the package root and the
+CLI's argument parsing do not, so ``piecs-bayes --help`` does not import JAX
+(tests/cli/test_startup.py).
 
 float64 is switched on before any array is made: micrometres on a 100 mm part
 need it. A persistent compilation cache in the user's cache directory lets a
@@ -10,7 +15,11 @@ that the default 1 s (or 0.2 s) threshold left out, ~2 s of a warm run.
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import json
 import os
+import threading
 from pathlib import Path
 
 import jax
@@ -31,3 +40,92 @@ if not os.environ.get("PIECS_BAYES_NO_CACHE"):
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     except OSError:  # read-only home: run without the cache
         pass
+
+
+# ------------------------------------------------------------------ persisted traces
+# The compilation cache skips XLA's compilation, not JAX's tracing of the Python
+# function (seconds for the fit kernel). `persisted` keeps the traced program too,
+# serialised with `jax.export` next to the compilation cache: a later process
+# deserialises it (milliseconds) and compiles it from the compilation cache.
+
+
+@functools.cache
+def source_hash(*packages: str) -> str:
+    """SHA-256 of the Python sources of `packages` (subpackages of piecs_bayes, what a
+    trace runs); of every module when none is named. A trace of other sources is stale."""
+    h = hashlib.sha256()
+    root = Path(__file__).resolve().parent
+    for top in packages or (".",):
+        for p in sorted((root / top).rglob("*.py")):
+            h.update(p.relative_to(root).as_posix().encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def _export_path(name: str, key, packages) -> Path | None:
+    """Where the trace of `name` for `key` is kept; None when the cache is off."""
+    if os.environ.get("PIECS_BAYES_NO_CACHE"):
+        return None
+    import jaxlib
+
+    ident = repr((name, key, jax.__version__, jaxlib.__version__, jax.default_backend(),
+                  bool(jax.config.jax_enable_x64), source_hash(*packages)))  # fmt: skip
+    digest = hashlib.sha256(ident.encode()).hexdigest()[:32]
+    return _cache_dir().parent / "export" / f"{name}-{digest}.bin"
+
+
+def persisted(name: str, key, build, packages: tuple[str, ...] = ()) -> tuple:
+    """`(compiled function, meta)` of a traced program, kept across processes.
+
+    `build()` returns `(jitted function, example arguments, meta)`; `meta` is JSON
+    data known once traced (e.g. the layout of a packed result). The trace is kept
+    as `jax.export` serialisation under the cache directory, named by `name` and a
+    digest of `key` (what the trace depends on: static settings, shapes), the JAX
+    and jaxlib versions, the backend and the sources of `packages` (the subpackages
+    whose code the trace runs; default all: `source_hash`). A
+    missing, unreadable or stale file is traced again (and rewritten); with
+    ``PIECS_BAYES_NO_CACHE=1`` nothing is read or written. The function returned
+    runs the exported program (the same on the first and later runs).
+    """
+    from jax import export
+
+    path = _export_path(name, key, packages)
+    if path is not None and path.is_file():
+        try:
+            blob = path.read_bytes()
+            n = int.from_bytes(blob[:8], "little")
+            meta = json.loads(blob[8 : 8 + n].decode())
+            exported = export.deserialize(bytearray(blob[8 + n :]))
+            return jax.jit(exported.call), meta
+        except Exception:  # noqa: BLE001 - stale or corrupt: trace again, below
+            pass
+    fn, args, meta = build()
+    exported = export.export(fn)(*args)
+    if path is not None:
+        head = json.dumps(meta).encode()
+        try:
+            blob = len(head).to_bytes(8, "little") + head + bytes(exported.serialize())
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+            tmp.write_bytes(blob)
+            os.replace(tmp, path)
+        except (OSError, ImportError):  # read-only cache, or no flatbuffers: not kept
+            pass
+    return jax.jit(exported.call), meta
+
+
+class LazyModule:
+    """A module imported on its first attribute access: `stats = LazyModule("scipy.stats")`
+    keeps a run that never computes a quantile (`piecs-bayes fit`) from paying for
+    scipy.stats at start-up (0.3-0.7 s of a 2.5 s warm run)."""
+
+    def __init__(self, name: str):
+        self._name = name
+
+    def __getattr__(self, attr: str):
+        import importlib
+
+        return getattr(importlib.import_module(self._name), attr)
+
+    def __repr__(self) -> str:
+        return f"LazyModule({self._name!r})"

@@ -8,7 +8,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 import pytest  # noqa: E402
 
-import piecs_bayes  # noqa: E402,F401  (switches float64 on)
+import piecs_bayes._config  # noqa: E402,F401  (switches float64 on)
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARED_REFERENCE = ROOT.parent / "shared" / "reference"

@@ -13,6 +13,7 @@ from pathlib import Path
 from . import _types as T
 
 __all__ = [
+    "APPLY_ROUTES",
     "Console",
     "add_apply",
     "add_common",
@@ -83,10 +84,13 @@ def out_dir(args, study) -> Path:
     return Path("reports") / (slug(study.name) or slug(study.path.stem) or "study")
 
 
+#: `io.APPLY_ROUTES`, spelled here so that building the parser imports no JAX
+#: (`--help` at once); tests/cli/test_startup.py checks that the two agree
+APPLY_ROUTES = ("program", "errspec", "tool_offset", "none")
+
+
 def add_apply(p: argparse.ArgumentParser, *, alternatives: bool = True) -> None:
     """`--apply ROUTE` (and `--alternatives`): the one route to the machine."""
-    from ..io import APPLY_ROUTES
-
     p.add_argument(
         "--apply",
         choices=APPLY_ROUTES,

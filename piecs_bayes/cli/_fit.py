@@ -31,7 +31,7 @@ def register(sub) -> None:
         "--method",
         choices=("lsq", "robust", "bayes"),
         default=None,
-        help="default: the study's fit.method; bayes: robust fit, then the posterior (emcee)",
+        help="default: the study's fit.method; bayes: robust fit, then the posterior (MCMC)",
     )
     p.add_argument(
         "--steps", type=T.positive_int, default=None, help="bayes: MCMC steps per ensemble"
@@ -86,6 +86,13 @@ def register(sub) -> None:
     )
     p.add_argument("which", choices=("demo", "batch"), help="which data set")
     p.add_argument("--parts", type=T.positive_int, default=36, help="batch: number of parts")
+    p.add_argument(
+        "--points",
+        type=T.positive_int,
+        default=None,
+        help="batch: probe points per feature (default: 6-10 per feature, as the demo part; "
+        "e.g. 512 for a scanning probe)",
+    )
     add_common(p)
     p.set_defaults(func=cmd_simulate)
 
@@ -167,6 +174,6 @@ def cmd_simulate(args, console) -> int:
     if args.which == "demo":
         simulate.write_demo(out, seed=args.seed or 20261123)
     else:
-        simulate.write_batch(out, n_parts=args.parts, seed=args.seed or 7)
+        simulate.write_batch(out, n_parts=args.parts, seed=args.seed or 7, points=args.points)
     console.say(f"wrote simulated {args.which} data to {out}")
     return 0

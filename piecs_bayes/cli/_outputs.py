@@ -11,7 +11,7 @@ __all__ = ["bayes_from_args", "print_fit", "write_bayes", "write_bounds", "write
 def bayes_from_args(args, study, probe, fit, console):
     from ..jobs import bayes_study
 
-    console.step("sampling the posterior (emcee)")
+    console.step("sampling the posterior (MCMC)")
     bayes = bayes_study(
         study, fit, probe, part=fit.part, nsteps=args.steps, seed=args.seed,
         progress=not args.quiet,

@@ -13,10 +13,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
+from .. import _config
 from ..errors import AnalysisError
 from ._indices import _NAN_INTERVAL, Interval
+
+stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 
 __all__ = ["BayesCapability"]
 

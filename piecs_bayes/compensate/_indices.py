@@ -11,9 +11,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
+from .. import _config
 from ..errors import InputError
+
+stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 
 __all__ = ["Interval"]
 

@@ -13,12 +13,14 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy import stats
 
+from .. import _config
 from ..errors import InputError
 from ._bayes_capability import _draw_indices, _posterior_draws, _summary
 from ._capability import CapabilityResult
 from ._indices import Interval, _bissell, _indices
+
+stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 
 __all__ = ["PredictedCapability", "predict_capability"]
 

@@ -231,13 +231,13 @@ def corner_figure(res, feature: str | None = None, *, max_draws: int = 20000, se
     from matplotlib.patches import Patch
 
     handles = [
-        Patch(color="C0", alpha=0.55, label="posterior (emcee draws)"),
+        Patch(color="C0", alpha=0.55, label="posterior (MCMC draws)"),
         Line2D([], [], color="C0", lw=1, label="posterior 39 % / 86 % contours, mean"),
         Line2D([], [], color="k", ls="--", lw=1, label="linearised normal (robust fit), 86 %"),
     ]
     fig.legend(handles=handles, loc="upper right", bbox_to_anchor=(0.98, 0.9), frameon=False)
     fig.suptitle(
-        f"Posterior of {feature!r}: emcee draws (blue; contours 39 % and 86 %) and the "
+        f"Posterior of {feature!r}: MCMC draws (blue; contours 39 % and 86 %) and the "
         "robust fit's linearised normal (dashed)",
         fontsize=10,
     )

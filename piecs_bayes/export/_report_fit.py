@@ -195,7 +195,8 @@ def _posterior_section(res) -> list:
     blocks = [
         _Para(state, "p" if post.converged else "warn"),
         _Para(
-            f"Sampler: emcee, {post.n_ensembles} independent ensembles of {post.nwalkers} walkers, "
+            f"Sampler: {post.sampler}, {post.n_ensembles} independent ensembles of "
+            f"{post.nwalkers} walkers, "
             f"{post.nsteps} steps each, burn-in {post.burn}, thin {post.thin}; "
             f"{post.wall_time:.1f} s sampling, {post.ess_per_second:.0f} effective samples "
             "per second (smallest ESS). "

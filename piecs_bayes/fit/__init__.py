@@ -1,9 +1,9 @@
 """Fitting: general (robust) least squares on optimistix, feature models, Bayesian fits."""
 
+from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._batch import CHUNK_PARTS as CHUNK_PARTS
 from ._batch import BatchFit as BatchFit
 from ._batch import fit_profiles as fit_profiles
-from ._batch_bayes import fit_profiles_bayes as fit_profiles_bayes
 from ._batch_bayes import sample_posteriors as sample_posteriors
 from ._bayes import ConvergenceError as ConvergenceError
 from ._bayes import ConvergenceWarning as ConvergenceWarning
@@ -13,6 +13,7 @@ from ._bayes import split_rhat as split_rhat
 from ._bayes import student_t_loglik as student_t_loglik
 from ._bayes_profile import BayesProfileFit as BayesProfileFit
 from ._bayes_profile import fit_profile_bayes as fit_profile_bayes
+from ._bayes_profile import fit_profiles_bayes as fit_profiles_bayes
 from ._bayes_profile import profile_log_posterior as profile_log_posterior
 from ._features import FeatureFit as FeatureFit
 from ._features import arc_distance as arc_distance

@@ -24,7 +24,8 @@ the loop would have raised for that part.
 
 **Batch size and memory.** Parts are processed in chunks of `chunk_size` parts
 (progress is reported per chunk); within a chunk each group is solved in batches
-of a fixed size (`BATCH`), the last one padded, so one compilation per group
+of a fixed size (`BATCH`; fewer problems for buckets over 256 points, see
+`BATCH_POINTS`), the last one padded, so one compilation per group
 serves every study size and every chunking. The kept arrays are ~1 kB per
 problem (residuals, weights and the Jacobian are kept so that
 [`BatchFit.profile_fit`][] can rebuild any part's [`ProfileFit`][]): ~70 MB for
@@ -46,8 +47,8 @@ from ..geometry import Profile
 from ._batch_result import BatchFit, Group, inlier_ss
 from ._batch_solve import (
     BATCH,
-    KERNEL_MAX_POINTS,
     Settings,
+    batch_rows,
     dispatch,
     fetch,
     geometry_table,
@@ -102,9 +103,9 @@ def fit_profiles(
     - `solver`: `"auto"` (default): the lean batch kernel (`_batch_kernel`: the
       same staged objective and result statistics, Newton steps in closed form),
       then the engine's Levenberg-Marquardt for any problem it did not solve, so a
-      failure carries the engine's status and message (features with more than
-      `KERNEL_MAX_POINTS` points go to Levenberg-Marquardt directly); `"fast"`:
-      the kernel alone (same limit);
+      failure carries the engine's status and message (every bucket, 8 to 4,096
+      points per feature and more, cost linear in points); `"fast"`: the kernel
+      alone;
       or an engine solver for every problem: `"lm"` (`fit_profile`'s: the loop's
       exact path), `"gauss_newton"`, `"dogleg"`. Under `vmap` a batch runs as many
       steps as its slowest problem, and the engine's robust stages make LM take
@@ -114,7 +115,8 @@ def fit_profiles(
     - `rtol`, `atol`, `max_steps`: as in [`least_squares`][] (`fit_profile`'s
       defaults).
     - `chunk_size`: parts per compiled call (memory grows with it).
-    - `batch_size`: problems per compiled call (see `BATCH`).
+    - `batch_size`: problems per compiled call (see `BATCH`; fewer for buckets
+      over `BATCH_POINTS // batch_size` points).
     - `progress`: `True` for a tqdm bar, or a callable `progress(done, total, part)`
       called after each chunk.
 
@@ -343,16 +345,17 @@ def _solve_chunks(specs, chunk_of, n_chunks, data, st: Settings, bsize: int, pro
                 continue
             solve = group_solver(st, spec.kind, spec.free, spec.n_pad)
             g_data = (*data, spec.n_pad)
-            for lo in range(0, sel.size, bsize):
-                rows = sel[lo : lo + bsize]
+            g_bsize = batch_rows(bsize, spec.n_pad)
+            for lo in range(0, sel.size, g_bsize):
+                rows = sel[lo : lo + g_bsize]
                 # dispatched now (asynchronous: XLA computes while Python prepares the
                 # next batch), fetched after the chunk. Not from several threads: two
                 # concurrent executions on XLA's CPU pool were seen to deadlock.
-                pending.append((g_i, rows, g_data, dispatch(solve, rows, g_data, bsize, st)))
+                pending.append((g_i, rows, g_data, dispatch(solve, rows, g_data, g_bsize, st)))
         for g_i, rows, g_data, dev in pending:
             out = fetch(dev, rows.size)
             spec = specs[g_i]
-            if st.solver == "auto" and spec.n_pad <= KERNEL_MAX_POINTS:
+            if st.solver == "auto":
                 retry_lm(out, rows, g_data, spec.kind, spec.free, st)
             for name, a in out.items():
                 results[g_i].setdefault(name, []).append(a)

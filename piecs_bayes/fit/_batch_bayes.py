@@ -28,6 +28,7 @@ part's ensembles, $\tau$, ESS and the same convergence verdict.
 from __future__ import annotations
 
 import functools
+import sys
 import time
 import warnings
 from collections.abc import Callable
@@ -38,10 +39,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import AnalysisError, InputError
-from ._bayes import (
+from ._bayes_core import (
     ConvergenceError,
     ConvergenceWarning,
+    _cov_from_hessian,
     _diagnose,
+    _neg_hessians,
     _sqrt_psd,
     _start_cov,
     check_thin,
@@ -50,7 +53,10 @@ from ._diagnostics import problems as _problems
 from ._moves import DE_FRACTION, DE_SIGMA, STRETCH_A, check_moves, de_gamma0
 from ._posterior import Posterior, make_posterior
 
-__all__ = ["fit_profiles_bayes", "sample_posteriors"]
+__all__ = ["LOCKSTEP", "sample_posteriors"]
+
+#: The sampler's name in `Posterior.sampler` and posterior.nc (with the backend).
+LOCKSTEP = "piecs_bayes lockstep ensembles"
 
 
 @functools.lru_cache(maxsize=64)
@@ -110,7 +116,15 @@ _BLOCK = 250
 
 @functools.lru_cache(maxsize=32)
 def _jax_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: str, thin: int):
-    """Jitted `(burn, block)` runners of the lockstep ensembles, cached per model."""
+    """The jitted runner of the lockstep ensembles, cached per model.
+
+    `advance(carry, n_skip, n_keep, args)` runs `n_skip` steps, then `n_keep * thin`
+    steps keeping the state after every `thin`-th, and returns the carry and the
+    kept `(n_keep, E, W, d)` walkers and log posteriors (in a buffer of `_BLOCK`
+    rows; `n_keep <= _BLOCK`). The loop runs over half-steps (the red-blue scheme:
+    a new random split of every ensemble on each even half-step), so that the log
+    posterior is compiled once: one program for burn-in and every block.
+    """
     vec = jax.vmap(jax.vmap(log_prob, in_axes=(0, None)), in_axes=(0, 0))
     n_e, h = n_parts * k_ens, w // 2
     rows = jnp.arange(n_e)[:, None]
@@ -143,61 +157,74 @@ def _jax_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: str
         lp = lp.at[rows, s_idx].set(jnp.where(acc, lp_new, lp_old))
         return coords, lp, acc
 
-    def step(carry, args):
+    def half_step(i, state, n_skip, args):
+        key, coords, lp, n_acc, perm, kept, kept_lp = state
+        key, k0, k1 = jax.random.split(key, 3)
+        first = i % 2 == 0  # first half of a step: a new split (emcee's random split)
+        new = jnp.argsort(jax.random.uniform(k0, (n_e, w)), axis=1).astype(perm.dtype)
+        perm = jnp.where(first, new, perm)
+        s_idx = jnp.where(first, perm[:, :h], perm[:, h:])
+        c_idx = jnp.where(first, perm[:, h:], perm[:, :h])
+        coords, lp, acc = half(k1, coords, lp, s_idx, c_idx, args)
+        n_acc = n_acc.at[rows, s_idx].add(acc)
+        j = i // 2 - n_skip + 1  # steps done after the skipped ones
+        slot = jnp.where(~first & (j > 0) & (j % thin == 0), j // thin - 1, _BLOCK)
+        kept = jax.lax.dynamic_update_index_in_dim(kept, coords, slot, 0)  # row _BLOCK: discarded
+        kept_lp = jax.lax.dynamic_update_index_in_dim(kept_lp, lp, slot, 0)
+        return key, coords, lp, n_acc, perm, kept, kept_lp
+
+    @jax.jit
+    def advance(carry, n_skip, n_keep, args):
         key, coords, lp, n_acc = carry
-        key, k0, k1, k2 = jax.random.split(key, 4)
-        perm = jnp.argsort(jax.random.uniform(k0, (n_e, w)), axis=1)  # emcee's split
-        first, second = perm[:, :h], perm[:, h:]
-        coords, lp, a1 = half(k1, coords, lp, first, second, args)
-        coords, lp, a2 = half(k2, coords, lp, second, first, args)
-        n_acc = n_acc.at[rows, first].add(a1).at[rows, second].add(a2)
-        return key, coords, lp, n_acc
+        state = (
+            key, coords, lp, n_acc, jnp.zeros((n_e, w), dtype=jnp.int32),
+            jnp.zeros((_BLOCK + 1, n_e, w, ndim), coords.dtype),
+            jnp.zeros((_BLOCK + 1, n_e, w), lp.dtype),
+        )  # fmt: skip
+        n_half = 2 * (n_skip + n_keep * thin)
+        state = jax.lax.fori_loop(0, n_half, lambda i, s: half_step(i, s, n_skip, args), state)
+        return state[:4], state[5][:_BLOCK], state[6][:_BLOCK]
 
-    @jax.jit
-    def burn_in(carry, n, args):
-        return jax.lax.fori_loop(0, n, lambda i, c: step(c, args), carry)
-
-    @jax.jit
-    def block(carry, args):
-        def keep(c, _):
-            c = jax.lax.fori_loop(0, thin, lambda i, cc: step(cc, args), c)
-            return c, (c[1], c[2])
-
-        return jax.lax.scan(keep, carry, None, length=_BLOCK)
-
-    return burn_in, block
+    return advance
 
 
-def _run_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep, seed, bar):
+def _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep, seed):
+    """The JAX backend, compiled (so that the run's wall time excludes compilation):
+    a function `run(bar)` that returns the kept walkers `(n_keep, E, W, d)`, their
+    log posteriors, the accepted moves per walker and the number of steps run."""
     n_e, w, ndim = coords.shape
-    burn_in, block = _jax_chain(log_prob, n_parts, k_ens, w, ndim, moves, thin)
+    advance = _jax_chain(log_prob, n_parts, k_ens, w, ndim, moves, thin)
     carry = (
         jax.random.PRNGKey(seed),
         jnp.asarray(coords),
         jnp.asarray(lp),
         jnp.zeros((n_e, w)),
     )
-    done = 0
-    while done < burn:  # in blocks, for the progress bar
-        n = min(burn - done, _BLOCK * thin)
-        carry = burn_in(carry, n, args)
-        done += n
-        if bar is not None:
-            jax.block_until_ready(carry)
-            bar.update(done - bar.n)
-    chains, lps = [], []
-    for _ in range(-(-n_keep // _BLOCK)):
-        carry, (c, lp_b) = block(carry, args)
-        chains.append(c)
-        lps.append(lp_b)
-        if bar is not None:
-            jax.block_until_ready(carry)
-            bar.update(min(bar.total, burn + sum(len(x) for x in chains) * thin) - bar.n)
-    kept = np.concatenate([np.asarray(c) for c in chains])[:n_keep]
-    kept_lp = np.concatenate([np.asarray(x) for x in lps])[:n_keep]
-    kept_lp = np.where(np.isnan(kept_lp), -np.inf, kept_lp)
-    steps = burn + -(-n_keep // _BLOCK) * _BLOCK * thin  # the last block's padding too
-    return kept, kept_lp, np.asarray(carry[3]), steps
+    advance = advance.lower(carry, 0, 0, args).compile()  # n_skip, n_keep: traced
+
+    def run(bar):
+        nonlocal carry
+        done = 0
+        while done < burn:  # in blocks, for the progress bar
+            n = min(burn - done, _BLOCK * thin)
+            carry = advance(carry, n, 0, args)[0]
+            done += n
+            if bar is not None:
+                jax.block_until_ready(carry)
+                bar.update(done - bar.n)
+        chains, lps = [], []
+        for lo in range(0, n_keep, _BLOCK):
+            m = min(_BLOCK, n_keep - lo)
+            carry, c, lp_b = advance(carry, 0, m, args)
+            chains.append(np.asarray(c[:m]))
+            lps.append(np.asarray(lp_b[:m]))
+            if bar is not None:
+                bar.update(min(bar.total, burn + (lo + m) * thin) - bar.n)
+        kept_lp = np.concatenate(lps)
+        kept_lp = np.where(np.isnan(kept_lp), -np.inf, kept_lp)
+        return np.concatenate(chains), kept_lp, np.asarray(carry[3]), burn + n_keep * thin
+
+    return run
 
 
 def sample_posteriors(
@@ -212,7 +239,7 @@ def sample_posteriors(
     burn: int | None = None,
     thin: int | str = "auto",
     seed: int = 0,
-    progress: bool = True,
+    progress: bool | Callable[[str], None] = True,
     n_ensembles: int = 4,
     init_scale: float = 1.0,
     on_fail: Literal["warn", "raise", "ignore"] = "warn",
@@ -235,14 +262,18 @@ def sample_posteriors(
       variances; `None`: the inverse Hessian of `-log_prob` at each `x0`.
     - the rest: as [`sample_posterior`][] (`moves`: `None`/`"stretch"` or `"de"`);
       `on_fail` applies per part (one warning lists every failing part).
-    - `backend`: `"jax"` (default): the whole chain is one jitted `lax.scan`
-      (moves, acceptance and the log posterior; run in blocks for the progress
-      bar), no Python per step; `"numpy"`: the moves in NumPy around one jitted
-      log-posterior call per half-step (emcee's structure). Same algorithm, other
-      random numbers. With `thin > 1` the JAX backend keeps every `thin`-th state
-      after `burn` (and may run up to `thin - 1` steps more).
+    - `progress`: one tqdm progress bar for all ensembles; a callable also gets a
+      line before the diagnostics (as [`sample_posterior`][]).
+    - `backend`: `"jax"` (default): the whole chain is one jitted loop (moves,
+      acceptance and the log posterior, compiled once per model; run in blocks of
+      `_BLOCK` kept steps for the progress bar), no Python per step; `"numpy"`: the
+      moves in NumPy around one jitted log-posterior call per half-step (emcee's
+      structure). Same algorithm, other random numbers. With `thin > 1` the JAX
+      backend keeps every `thin`-th state after `burn` (and may run up to
+      `thin - 1` steps more).
 
-    `Posterior.wall_time` is the run's wall time divided by the number of parts.
+    `Posterior.wall_time` is the run's wall time (compilation excluded) divided by
+    the number of parts; `Posterior.sampler` is `LOCKSTEP` with the backend.
 
     **Returns:** one [`Posterior`][piecs_bayes.fit.Posterior] per part, in order.
     """
@@ -263,24 +294,20 @@ def sample_posteriors(
     rng = np.random.default_rng(np.random.SeedSequence(seed))
     coords, lp = _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, init_scale)
     n_keep = (nsteps - burn + thin - 1) // thin
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=nsteps, desc=f"lockstep ensembles ({n_parts} parts x {k_ens})")
-    t0 = time.perf_counter()
     if backend == "jax":
-        kept, kept_lp, n_acc, steps_run = _run_jax(
-            log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep,
-            int(rng.integers(2**31)), bar,
-        )  # fmt: skip
+        run = _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin,
+                           n_keep, int(rng.integers(2**31)))  # fmt: skip
     else:
-        kept, kept_lp, n_acc = _run_numpy(rng, coords, lp, lp_fn, moves, nsteps, burn, thin,
-                                          n_keep, bar)  # fmt: skip
-        steps_run = nsteps
+        run = functools.partial(_run_numpy, rng, coords, lp, lp_fn, moves, nsteps, burn, thin,
+                                n_keep)  # fmt: skip
+    bar = _bar(progress, nsteps, n_parts, k_ens)
+    t0 = time.perf_counter()
+    kept, kept_lp, n_acc, steps_run = run(bar)
     wall = time.perf_counter() - t0
     if bar is not None:
         bar.close()
+    if callable(progress):
+        progress("posterior diagnostics: autocorrelation times, ESS and R-hat per parameter")
 
     criteria = {"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor}
     out, failed = [], []
@@ -289,7 +316,7 @@ def sample_posteriors(
         post = _part_posterior(
             names, kept[:, sl].transpose(1, 0, 2, 3), kept_lp[:, sl].transpose(1, 0, 2),
             (n_acc[sl] / steps_run).reshape(-1), thin, thin_spec, nsteps=nsteps, burn=burn,
-            wall_time=wall / n_parts, criteria=criteria,
+            wall_time=wall / n_parts, criteria=criteria, sampler=f"{LOCKSTEP} ({backend})",
         )  # fmt: skip
         out.append(post)
         if post.problems:
@@ -345,6 +372,19 @@ def _checked_run(x0, names, args, on_fail, moves, nwalkers, nsteps, burn, thin, 
     return x0, names, nwalkers, burn, thin_spec, thin, moves
 
 
+def _bar(progress, nsteps: int, n_parts: int, k_ens: int):
+    """The tqdm progress bar of a run (`None` without `progress`): like emcee's, a
+    line every 10 s when stderr is not a terminal (a log file, CI)."""
+    if not progress:
+        return None
+    from tqdm.auto import tqdm
+
+    desc = f"lockstep ensembles ({n_parts} parts x {k_ens})" if n_parts > 1 else (
+        f"lockstep sampler ({k_ens} ensembles)"
+    )  # fmt: skip
+    return tqdm(total=nsteps, desc=desc, mininterval=0.1 if sys.stderr.isatty() else 10.0)
+
+
 def _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, init_scale):
     """Per part, `k_ens` independent balls of `w` walkers around its `x0`; walkers
     whose log posterior is not finite are redrawn. Returns the walkers
@@ -352,10 +392,15 @@ def _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, init_scale):
     n_parts, ndim = x0.shape
     n_e = n_parts * k_ens
 
+    if cov0 is None:  # every part's Hessian in one call
+        hs = np.asarray(_neg_hessians(log_prob)(jnp.asarray(x0), args))
+        roots = [_sqrt_psd(_cov_from_hessian(h)) * init_scale for h in hs]
+    else:
+        roots = [_sqrt_psd(_start_cov(log_prob, x0[p], None, cov0[p], ndim)) * init_scale
+                 for p in range(n_parts)]  # fmt: skip
+
     def root_of(p):
-        part_args = jax.tree_util.tree_map(lambda a, p=p: a[p], args)
-        c = None if cov0 is None else cov0[p]
-        return _sqrt_psd(_start_cov(log_prob, x0[p], part_args, c, ndim)) * init_scale
+        return roots[p]
 
     coords = np.empty((n_e, w, ndim))
     for p in range(n_parts):
@@ -386,7 +431,7 @@ def _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, init_scale):
 def _run_numpy(rng, coords, lp, lp_fn, moves, nsteps, burn, thin, n_keep, bar):
     """The NumPy backend: red-blue half-steps of all ensembles, one jitted log
     posterior call per half-step. Returns the kept walkers `(n_keep, E, W, d)`,
-    their log posteriors and the accepted moves per walker."""
+    their log posteriors, the accepted moves per walker and the steps run."""
     n_e, w, ndim = coords.shape
     h = w // 2
     kept = np.empty((n_keep, n_e, w, ndim))
@@ -406,11 +451,11 @@ def _run_numpy(rng, coords, lp, lp_fn, moves, nsteps, burn, thin, n_keep, bar):
             slot += 1
         if bar is not None and (step % 50 == 49 or step == nsteps - 1):
             bar.update(step + 1 - bar.n)
-    return kept, kept_lp, n_acc
+    return kept, kept_lp, n_acc, nsteps
 
 
 def _part_posterior(names, kept, kept_lp, acceptance, thin, thin_spec, *, nsteps, burn,
-                    wall_time, criteria) -> Posterior:  # fmt: skip
+                    wall_time, criteria, sampler) -> Posterior:  # fmt: skip
     """One part's [`Posterior`][] from its ensembles' kept draws `(K, S, W, d)` and
     log posteriors `(K, S, W)` (thinned further and diagnosed as
     `sample_posterior` does)."""
@@ -429,90 +474,5 @@ def _part_posterior(names, kept, kept_lp, acceptance, thin, thin_spec, *, nsteps
     )  # fmt: skip
     return make_posterior(
         names, kp, lp_p, acceptance, (tau, reliable, ess, rhat), problems, nsteps=nsteps,
-        burn=burn, thin=thin_p, wall_time=wall_time, criteria=dict(criteria),
+        burn=burn, thin=thin_p, wall_time=wall_time, criteria=dict(criteria), sampler=sampler,
     )  # fmt: skip
-
-
-def fit_profiles_bayes(
-    profile,
-    part_ids,
-    feature_ids,
-    machine_points,
-    *,
-    starts,
-    sources: dict,
-    ball_radius: float,
-    transform=None,
-    sigma: float,
-    likelihood: str = "gaussian",
-    nu: float = 4.0,
-    approach=None,
-    nsteps: int = 3000,
-    nwalkers: int | None = None,
-    n_ensembles: int = 4,
-    seed: int = 0,
-    progress: bool = True,
-    on_fail: str = "warn",
-    moves: str | None = "de",
-    file: str | None = None,
-    lines=None,
-):
-    """[`fit_profile_bayes`][] for many parts: parts with the same pattern of
-    triggers (feature of each point, in order) share one compiled log posterior
-    and are sampled together by [`sample_posteriors`][].
-
-    **Arguments:** `part_ids`, `feature_ids`, `machine_points` (and `approach`)
-    (and `lines`) per trigger, as in `fit_profile_bayes`; `starts`: `{part: {feature: deviation}}`
-    (e.g. `BatchFit.values`); the rest as `fit_profile_bayes`.
-
-    **Returns:** `{part: BayesProfileFit}` in the order of first appearance.
-    """
-    from ..geometry import MachineTransform
-    from ._bayes_profile import BayesProfileFit, profile_log_posterior
-    from ._inference_data import BayesData
-
-    transform = MachineTransform() if transform is None else transform
-    part_ids = np.asarray(part_ids).astype(str)
-    feature_ids = np.asarray(feature_ids).astype(str)
-    machine_points = np.asarray(machine_points, dtype=float)
-    order = list(dict.fromkeys(part_ids.tolist()))
-    patterns: dict[tuple, list[str]] = {}
-    rows_of = {}
-    for p in order:
-        rows = np.flatnonzero(part_ids == p)
-        rows_of[p] = rows
-        patterns.setdefault(tuple(feature_ids[rows].tolist()), []).append(p)
-    out = {}
-    for g, (pattern, parts) in enumerate(patterns.items()):
-        log_prob, lay, priors = profile_log_posterior(
-            profile, pattern, sources=sources, ball_radius=ball_radius, transform=transform,
-            sigma=sigma, likelihood=likelihood, nu=nu, with_approach=approach is not None,
-            file=file,
-        )  # fmt: skip
-        x0 = np.zeros((len(parts), len(lay.names)))
-        for i, p in enumerate(parts):
-            for f, sl in lay.features:
-                x0[i, sl] = np.asarray(starts[p][f.id])
-            for name, k in lay.nuisance:
-                x0[i, k] = priors[name].mean
-            if lay.sigma_index is not None:
-                x0[i, lay.sigma_index] = sigma
-        pts = np.stack([machine_points[rows_of[p]] for p in parts])
-        appr = None if approach is None else np.stack([approach[rows_of[p]] for p in parts])
-        posts = sample_posteriors(
-            log_prob, x0, names=lay.names, args=(pts, appr), nwalkers=nwalkers, nsteps=nsteps,
-            seed=seed + g, progress=progress, n_ensembles=n_ensembles, on_fail=on_fail,
-            moves=moves,
-        )  # fmt: skip
-        for p, post in zip(parts, posts, strict=True):
-            r = rows_of[p]
-            data = BayesData(
-                feature_ids=feature_ids[r], machine_points=machine_points[r],
-                approach=None if approach is None else np.asarray(approach)[r],
-                lines=None if lines is None else np.asarray(lines)[r], sources=dict(sources),
-                ball_radius=float(ball_radius), transform=transform, sigma=float(sigma),
-                nu=float(nu), file=file, sampler="piecs_bayes lockstep ensembles",
-                moves=check_moves(moves),
-            )  # fmt: skip
-            out[p] = BayesProfileFit(profile, post, lay, likelihood, p, data)
-    return {p: out[p] for p in order}

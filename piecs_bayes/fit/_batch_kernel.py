@@ -24,7 +24,13 @@ carries the engine's status and message. If `_solve_core`'s statistics change,
 change them here too: the parity tests fail until they agree.
 
 It supports the named losses (not a callable) and residual functions with a
-fixed, small number of parameters (`feature_residuals`).
+fixed, small number of parameters (`feature_residuals`), and every point-count
+bucket (8 to 4,096 points and more: the cost per problem is linear in points).
+The Newton steps use no LAPACK; the statistics (two SVDs of the Jacobian) run in
+slices of `svd_batch` problems (`jax.lax.map`), small enough for jaxlib's batched
+LAPACK kernels to run on their calling thread: split over XLA's intra-op threads
+they deadlocked, the "hang in the nested while loops" that kept buckets over 32
+points on LM (`docs/xla_batched_svd_deadlock.md`).
 """
 
 from __future__ import annotations
@@ -40,7 +46,7 @@ from ._lsq_core import stages
 from ._lsq_statistics import analyse, statistics
 from ._lsq_types import Status
 
-__all__ = ["kernel_solver"]
+__all__ = ["kernel_solver", "svd_batch"]
 
 #: Gauss-Newton iterations per stage before giving up (MAX_STEPS_REACHED -> engine)
 MAX_ITER = 60
@@ -50,6 +56,10 @@ HALVINGS = 8
 #: curvature vanishes (Huber beyond the scale) the step stays bounded (0: Newton,
 #: 1: IRLS). 0.01 gave the fewest iterations and no failure on 28,000 fleet fits.
 CURVATURE_FLOOR = 0.01
+#: jaxlib's LAPACK kernels split a batch over XLA's intra-op threads, and block
+#: one of them waiting, when it costs at least 2e5 flops by their model, 10 m n^2
+#: for an m x n SVD (`GetLapackBatchChunkSize`); smaller batches run inline.
+SVD_PARALLEL_FLOPS, SVD_FLOPS = 200_000, 10
 
 
 def _runs(ids, cs):
@@ -85,21 +95,38 @@ def _spd_solve(a, b):
 
 @functools.lru_cache(maxsize=64)
 def kernel_solver(fn, p: int, loss: str, rtol: float, atol: float):
-    """Jitted `vmap` over problems of the lean staged solve; the same signature and
-    result (`LsqArrays`) as the batch engine's group solver: `solve(points, geom,
-    ball_radius, weights, scale, sigma)`, the first, second and fourth batched."""
+    """Jitted `vmap` over problems of the lean staged solve, then the statistics in
+    slices of `svd_batch` problems; the same signature and result (`LsqArrays`) as
+    the batch engine's group solver: `solve(points, geom, ball_radius, weights,
+    scale, sigma)`, the first, second and fourth batched."""
     robust = _robust.loss_id(loss) != 0
     ids, cs = stages(loss) if robust else (np.zeros(1, np.int32), np.ones(1))
     final_id, tuning = int(ids[-1]), float(cs[-1])
-    one = functools.partial(
-        _solve_one, fn, p, robust, tuple(_runs(ids, cs)), final_id, tuning, rtol, atol
-    )
-    return jax.jit(jax.vmap(one, in_axes=(0, 0, None, 0, None, None)))
+    one = functools.partial(_solve_one, fn, p, robust, tuple(_runs(ids, cs)), rtol, atol)
+    stats = functools.partial(_statistics_one, fn, robust, final_id, tuning, atol)
+
+    def solve(points, geom, ball_radius, w, scale, sigma):
+        y, code, steps, s_final = jax.vmap(one, in_axes=(0, 0, None, 0, None))(
+            points, geom, ball_radius, w, scale
+        )
+        return jax.lax.map(
+            lambda a: stats(*a, ball_radius, sigma),
+            (points, geom, w, y, code, steps, s_final),
+            batch_size=svd_batch(points.shape[0], points.shape[1], p),
+        )
+
+    return jax.jit(solve)
 
 
-def _solve_one(fn, p, robust, runs, final_id, tuning, rtol, atol,
-               points, geom, ball_radius, w, scale, sigma):  # fmt: skip
-    """One problem: the stages (`runs`) from zero, then `_solve_core`'s statistics."""
+def svd_batch(batch: int, n: int, p: int) -> int:
+    """Problems per call of the statistics' batched SVDs: few enough that jaxlib's
+    LAPACK kernel runs them on its calling thread (`docs/xla_batched_svd_deadlock.md`)."""
+    return int(max(1, min(batch, (SVD_PARALLEL_FLOPS - 1) // (SVD_FLOPS * n * p * p))))
+
+
+def _solve_one(fn, p, robust, runs, rtol, atol, points, geom, ball_radius, w, scale):
+    """One problem: the stages (`runs`) from zero; the solution, its status code,
+    the Newton steps and the final scale."""
     args = (points, geom, ball_radius)
     mask = w > 0
     wsqrt = jnp.sqrt(jnp.where(mask, w, 0.0))
@@ -116,8 +143,15 @@ def _solve_one(fn, p, robust, runs, final_id, tuning, rtol, atol,
     s_all = jnp.concatenate(s_all)
     s_final = s_all[-1] if robust else jnp.asarray(jnp.nan)
     code = jnp.where(ok, int(Status.SUCCESSFUL), int(Status.MAX_STEPS_REACHED))
+    return y, code, steps, s_final
 
-    # the statistics of `_solve_core`, at the solution: the same functions
+
+def _statistics_one(fn, robust, final_id, tuning, atol,
+                    points, geom, w, y, code, steps, s_final, ball_radius, sigma):  # fmt: skip
+    """The statistics of `_solve_core` at the solution `y`: the same functions."""
+    args = (points, geom, ball_radius)
+    mask = w > 0
+    wsqrt = jnp.sqrt(jnp.where(mask, w, 0.0))
     info = analyse(fn, args, y, mask, wsqrt, s_final, final_id, None, robust)
     return statistics(
         info, y, code, steps, s_final, mask, w, sigma, final_id, tuning, None, robust, atol

@@ -4,18 +4,19 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
-import jax.numpy as jnp
 import numpy as np
 
+from ..errors import AnalysisError, InputError
 from ..geometry import Profile
 from ._features import FeatureFit, _surface_and_nominal
 from ._least_squares import ravel
 from ._lsq_core import is_linear
 from ._lsq_result import LsqResult, param_names, result_from_arrays
 from ._lsq_types import COV_OK, Status
-from ._profile_fit import ProfileFit, scale_fits
+from ._profile_result import ProfileFit
 from ._sigma import DECLARED_DOF, probe_sigma, sigma_arrays
 
 __all__ = ["BatchFit", "Group", "inlier_ss"]
@@ -70,6 +71,10 @@ class BatchFit:
     sigma_rule: tuple = (None, DECLARED_DOF, False)
     #: the sigma the solves' covariances were computed with (rescaled to `sigma`)
     reference_sigma: float = 1.0
+    #: `(part index, feature index) -> (surface points, nominal points)` where the
+    #: solve computed them (a one-part `fit_profile(solver="auto")`), at least as
+    #: many rows as points; the others are computed by `profile_fit`
+    surfaces: dict | None = field(default=None, repr=False)
     _index: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -247,23 +252,36 @@ class BatchFit:
     # ------------------------------------------------------------------ per part
     def _result(self, g: Group, row: int) -> LsqResult:
         """The `LsqResult` that `least_squares` builds from the same arrays."""
-        arr = {k: np.asarray(v[row]) for k, v in g.arrays.items()}
-        y0 = jnp.zeros(len(g.free))
-        _, unravel = ravel(y0)
+        arr = {k: v[row] for k, v in g.arrays.items()}
+        names, unravel = _flat_structure(len(g.free))
         return result_from_arrays(
             arr,
             params=np.asarray(arr["params_flat"]),
             loss=self.loss,
             robust=not is_linear(self.loss),
-            names=param_names(y0),
+            names=names,
             unravel=unravel,
         )
 
-    def profile_fit(self, part: str | int) -> ProfileFit:
-        """The [`ProfileFit`][] of one part, field for field what `fit_profile` returns
-        (with `throw=False` semantics: check `fit.converged` per feature, or
-        `part_error`)."""
+    def profile_fit(self, part: str | int, *, throw: bool = False) -> ProfileFit:
+        """The [`ProfileFit`][] of one part, field for field what `fit_profile` returns.
+
+        With `throw=False` (the default) a feature that did not converge is kept
+        (check `fit.converged` per feature, or `part_error`); with `throw=True` it
+        raises what `fit_profile` raises: [`AnalysisError`][piecs_bayes.errors.AnalysisError]
+        with `part_error`'s message and the failed feature's `LsqResult` (the first
+        in profile order), or the probe-sigma rule's `InputError` naming `file`.
+        """
         i = self._part_index(part)
+        if throw:
+            self._raise_failure(i)
+        try:
+            ps = self.probe_sigma(i)
+        except InputError as exc:
+            if not throw:
+                raise
+            raise InputError(str(exc), file=self.file) from None
+        factor = ps.value / self.reference_sigma  # covariances -> the part's probe sigma
         fits, unmeasured = {}, []
         for j, f in enumerate(self.profile.features):
             g_i, row = (int(v) for v in self._where[i, j])
@@ -278,12 +296,19 @@ class BatchFit:
             values = np.zeros(f.nparams)
             values[list(g.free)] = np.asarray(res.params)
             cov = None
-            if res.covariance is not None:
+            if res.covariance is not None and len(g.free) == f.nparams:
+                cov = np.asarray(res.covariance) * factor**2  # as `scale_fits` scales the loop's
+            elif res.covariance is not None:
                 cov = np.zeros((f.nparams, f.nparams))
                 cov[np.ix_(g.free, g.free)] = np.asarray(res.covariance)
-            surface, nominal = map(
-                np.asarray, _surface_and_nominal(f, centres, values, float(self.ball_radius))
-            )
+                cov = cov * factor**2
+            known = None if self.surfaces is None else self.surfaces.get((i, j))
+            if known is not None:
+                surface, nominal = known[0][:n], known[1][:n]
+            else:
+                surface, nominal = map(
+                    np.asarray, _surface_and_nominal(f, centres, values, float(self.ball_radius))
+                )
             fits[f.id] = FeatureFit(
                 feature=f,
                 values=values,
@@ -300,15 +325,31 @@ class BatchFit:
                 result=res,
                 fixed=tuple(self.fix.get(f.id, ())),
             )
-        ps = self.probe_sigma(i)
         return ProfileFit(
             self.profile,
-            scale_fits(fits, ps.value / self.reference_sigma),
+            fits,
             "lsq" if self.method == "lsq" else "robust",
             tuple(unmeasured),
             self.parts[i],
             sigma=ps,
         )
+
+    def _raise_failure(self, i: int) -> None:
+        """`fit_profile`'s `AnalysisError` for part `i`'s first failed feature, if any."""
+        where = [(int(g_i), int(row)) for g_i, row in self._where[i] if g_i >= 0]
+        ok = int(Status.SUCCESSFUL)
+        if all(self.groups[g].arrays["status_code"][r] == ok for g, r in where):
+            return
+        message = self.part_error(i)
+        if message is None:
+            return
+        for j, f in enumerate(self.profile.features):
+            g_i, row = (int(v) for v in self._where[i, j])
+            if g_i >= 0 and f.id in self._index:
+                res = self._result(self.groups[g_i], row)
+                if res.status is not Status.SUCCESSFUL:
+                    raise AnalysisError(message, result=res)
+        raise AnalysisError(message)
 
     def rows(self) -> list[dict]:
         """One row per part, feature and parameter (for CSV / DataFrames), in the
@@ -355,6 +396,14 @@ class BatchFit:
         if len(bad) > 10:
             lines.append(f"  ... and {len(bad) - 10} more")
         return "\n".join(lines)
+
+
+@functools.lru_cache(maxsize=8)
+def _flat_structure(p: int):
+    """Names and `unravel` of `p` flat parameters (as `least_squares` makes them from
+    its start `jnp.zeros(p)`), made once: building them takes eager JAX operations."""
+    y0 = np.zeros(p)
+    return param_names(y0), ravel(y0)[1]
 
 
 def inlier_ss(g: Group, rows=slice(None)) -> tuple[np.ndarray, np.ndarray]:

@@ -13,23 +13,23 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..geometry import Profile
-from ._batch_kernel import kernel_solver
+from ._batch_kernel import kernel_solver, svd_batch
 from ._features import feature_residuals, geometry_args
 from ._lsq_core import solve_arrays
 from ._lsq_types import LsqArrays, Status
 
-__all__ = ["BATCH", "KERNEL_MAX_POINTS", "Settings", "dispatch", "fetch", "geometry_table",
-           "group_solver", "retry_lm"]  # fmt: skip
+__all__ = ["BATCH", "BATCH_POINTS", "Settings", "batch_rows", "dispatch", "fetch",
+           "geometry_table", "group_solver", "retry_lm"]  # fmt: skip
 
 #: problems per compiled call. One fixed size: every study, chunking and cluster
 #: reuses one compilation per group, and a problem's result does not depend on
 #: which others share its batch. (Padding a small study to it costs milliseconds.)
 BATCH = 256
-#: largest padded bucket (points per feature) fitted by the batch kernel. With
-#: 64-point buckets, XLA's CPU runtime (jaxlib 0.10.2) was seen to hang inside the
-#: kernel's nested while loops, every thread idle, whatever the batch size or
-#: dispatch; Levenberg-Marquardt (optimistix) does not. Larger buckets use it.
-KERNEL_MAX_POINTS = 32
+#: points (problems x bucket) per compiled call at most: buckets over 256 points
+#: get fewer problems per call (4,096 points: 16), so that a small study of densely
+#: probed parts is not padded to 256 problems and a call's arrays stay ~10 MB.
+#: Like `BATCH`, it depends on the bucket only: one compilation per group.
+BATCH_POINTS = 1 << 16
 #: batch size of the Levenberg-Marquardt retries of `solver="auto"`
 _RETRY_BATCH = 8
 #: fields of `LsqArrays` kept per problem (all of them: `profile_fit` rebuilds results)
@@ -72,18 +72,34 @@ def _engine_group_solver(kind, free, loss, solver, rtol, atol, max_steps):
             max_steps=max_steps,
         )
 
-    return jax.jit(jax.vmap(one, in_axes=(0, 0, None, 0, None, None)))
+    def solve(points, geom, ball_radius, weights, scale, sigma):
+        # in slices small enough for jaxlib's LAPACK kernels (QR, SVD) to run
+        # inline: split over XLA's intra-op threads they can deadlock
+        return jax.lax.map(
+            lambda a: one(*a[:2], ball_radius, a[2], scale, sigma),
+            (points, geom, weights),
+            batch_size=svd_batch(points.shape[0], points.shape[1], p),
+        )
+
+    return jax.jit(solve)
 
 
 def group_solver(st: Settings, kind: str, free: tuple[int, ...], n_pad: int):
-    """The compiled solve of a group: the batch kernel for `"auto"`/`"fast"` up to
-    `KERNEL_MAX_POINTS` points, else Levenberg-Marquardt, or the engine solver
-    `st.solver`."""
-    if st.solver in ("auto", "fast") and n_pad > KERNEL_MAX_POINTS:
-        return _engine_group_solver(kind, free, st.loss, "lm", st.rtol, st.atol, st.max_steps)
+    """The compiled solve of a group: the batch kernel for `"auto"`/`"fast"` (every
+    bucket, 8 to 4,096 points and more), or the engine solver `st.solver`. (Before,
+    buckets over 32 points went to Levenberg-Marquardt: with 64 points the kernel
+    hung in XLA's CPU runtime, a deadlock of jaxlib's batched SVD that the kernel
+    now avoids, `docs/xla_batched_svd_deadlock.md`.)"""
+    del n_pad  # the kernel's compilations are per shape
     if st.solver in ("auto", "fast"):
         return kernel_solver(feature_residuals(kind, free), len(free), st.loss, st.rtol, st.atol)
     return _engine_group_solver(kind, free, st.loss, st.solver, st.rtol, st.atol, st.max_steps)
+
+
+def batch_rows(bsize: int, n_pad: int) -> int:
+    """Problems per compiled call for the bucket `n_pad`: `bsize`, at most
+    `BATCH_POINTS` points (at least one problem)."""
+    return max(1, min(int(bsize), BATCH_POINTS // int(n_pad)))
 
 
 def _solve_rows(solve, rows, data, bsize, st: Settings) -> dict:

@@ -4,7 +4,10 @@ The model is a JAX scalar function `log_prob(theta, args)` (log prior plus log
 likelihood, `-inf` outside the support). `sample_posterior` jits it, vmaps it
 over walkers and hands it to `emcee.EnsembleSampler(..., vectorize=True)`,
 which gets NumPy arrays back (a vectorised call per half-ensemble instead of a
-Python call per walker: about 5x the effective samples per second).
+Python call per walker: about 5x the effective samples per second). With
+`sampler="lockstep"` the same ensembles and moves run instead in one jitted JAX
+loop (`piecs_bayes.fit._batch_bayes`, one part): no Python per step, the
+sampler of the main job (`fit_profile_bayes`).
 
 **Convergence is checked, not assumed.** Walkers of one affine-invariant
 ensemble are coupled through the stretch move: they can all sit in the same
@@ -32,7 +35,6 @@ change.
 from __future__ import annotations
 
 import functools
-import math
 import sys
 import time
 import warnings
@@ -40,12 +42,22 @@ from typing import Any, Literal
 
 import jax
 import jax.numpy as jnp
-import jax.scipy.special as jsp
 import numpy as np
 
 from ..errors import AnalysisError, InputError
-from ._diagnostics import arviz_layout, ess_and_rhat, split_rhat
+from ._batch_bayes import sample_posteriors
+from ._bayes_core import (
+    ConvergenceError,
+    ConvergenceWarning,
+    _diagnose,
+    _sqrt_psd,
+    _start_cov,
+    check_thin,
+    gaussian_loglik,
+    student_t_loglik,
+)
 from ._diagnostics import problems as _problems
+from ._diagnostics import split_rhat
 from ._moves import check_moves, emcee_moves
 from ._posterior import Posterior, emcee_module, make_posterior
 
@@ -58,157 +70,6 @@ __all__ = [
     "split_rhat",
     "student_t_loglik",
 ]
-
-_LOG_2PI = math.log(2.0 * math.pi)
-
-
-class ConvergenceWarning(UserWarning):
-    """An MCMC run whose diagnostics do not support trusting its numbers."""
-
-
-class ConvergenceError(AnalysisError):
-    """Raised instead of `ConvergenceWarning` when `on_fail="raise"`. Like emcee's
-    `AutocorrError`, which carries `tau`, it carries what was computed:
-    `posterior`, the [`Posterior`][] that failed the criteria (from
-    `sample_posteriors`, the list of every part's), also as `result`."""
-
-    def __init__(self, *args: object, posterior: Any = None):
-        super().__init__(*args, result=posterior)
-        self.posterior = posterior
-
-
-# --------------------------------------------------------------------------- likelihoods
-
-
-def gaussian_loglik(residuals, sigma):
-    """Gaussian log likelihood $\\sum_i \\log \\varphi(r_i/\\sigma_i) - \\log\\sigma_i$.
-
-    **Arguments:**
-
-    - `residuals`: array of residuals $r_i$ (data minus model).
-    - `sigma`: standard deviation, a scalar or an array broadcast to `residuals`.
-
-    **Returns:** the scalar $-\\tfrac12\\sum_i (r_i/\\sigma_i)^2 - \\sum_i \\log\\sigma_i
-    - \\tfrac n2 \\log 2\\pi$ (JAX, differentiable).
-    """
-    r = jnp.asarray(residuals)
-    s = jnp.broadcast_to(jnp.asarray(sigma, dtype=r.dtype), r.shape)
-    u = r / s
-    return -0.5 * jnp.sum(u * u) - jnp.sum(jnp.log(s)) - 0.5 * r.size * _LOG_2PI
-
-
-def student_t_loglik(residuals, scale, nu):
-    """Student-t log likelihood: the robust option, heavy tails absorb outliers.
-
-    $\\log L = \\sum_i \\log\\Gamma(\\tfrac{\\nu+1}2) - \\log\\Gamma(\\tfrac\\nu2)
-    - \\tfrac12\\log(\\nu\\pi) - \\log s_i - \\tfrac{\\nu+1}2\\log(1 + r_i^2/(\\nu s_i^2))$.
-
-    **Arguments:**
-
-    - `residuals`: array of residuals.
-    - `scale`: scale $s$ (not the standard deviation, which is
-      $s\\sqrt{\\nu/(\\nu-2)}$), scalar or broadcast.
-    - `nu`: degrees of freedom $\\nu > 0$ (4 to 5 is a common robust choice);
-      may itself be a sampled parameter.
-
-    **Returns:** the scalar log likelihood (JAX, differentiable).
-    """
-    r = jnp.asarray(residuals)
-    s = jnp.broadcast_to(jnp.asarray(scale, dtype=r.dtype), r.shape)
-    nu = jnp.asarray(nu, dtype=r.dtype)
-    u = r / s
-    const = jsp.gammaln(0.5 * (nu + 1.0)) - jsp.gammaln(0.5 * nu) - 0.5 * jnp.log(nu * jnp.pi)
-    return r.size * const - jnp.sum(jnp.log(s)) - 0.5 * (nu + 1.0) * jnp.sum(jnp.log1p(u * u / nu))
-
-
-# --------------------------------------------------------------------------- diagnostics
-
-
-def _taus(kept: np.ndarray) -> np.ndarray:
-    """emcee's integrated autocorrelation time per ensemble and parameter, `(K, d)`,
-    in kept steps (walker-averaged autocorrelation, Sokal's window `c=5`)."""
-    import emcee  # lazily: emcee imports scipy.stats (~0.5 s)
-
-    k = kept.shape[0]
-    taus = np.stack(
-        [emcee.autocorr.integrated_time(kept[i], c=5, tol=0, quiet=True) for i in range(k)]
-    )
-    return np.maximum(taus, 1e-12)
-
-
-def check_thin(thin) -> int | str:
-    """`thin`: a positive int, or ``"auto"`` (about half the smallest tau)."""
-    if thin == "auto":
-        return thin
-    if isinstance(thin, bool) or not isinstance(thin, int | np.integer) or thin < 1:
-        raise InputError(f"thin: got {thin!r}, expected an integer >= 1 or 'auto'", value=thin)
-    return int(thin)
-
-
-def _diagnose(kept: np.ndarray, lps: np.ndarray, run_thin: int, thin, tau_factor: float):
-    """Thin and diagnose the kept draws of one run.
-
-    `kept`: `(K, S, W, d)` draws (every `run_thin`-th step after burn-in), `lps`:
-    `(K, S, W)`; `thin`: ``"auto"`` thins them further to about half the smallest
-    autocorrelation time (nearly no effective samples lost, a tenth to a
-    fiftieth of the draws to store), an int keeps them. Returns the thinned
-    draws and log posteriors, the total thinning, tau (original steps; mean and
-    max over ensembles, estimated before thinning), reliable, ESS and R-hat per
-    parameter, the last two as ArviZ computes them on the stored draws
-    (`_diagnostics.arviz_layout`).
-    """
-    k, s, w, d = kept.shape
-    taus = _taus(kept)
-    reliable = s >= tau_factor * taus.max(axis=0)
-    extra = 1
-    if thin == "auto" and np.all(np.isfinite(taus)):
-        extra = max(1, min(int(np.min(taus) // 2), s // 8))
-    kept, lps = kept[:, extra - 1 :: extra], lps[:, extra - 1 :: extra]
-    chains = arviz_layout(kept)  # (K, W*S', d)
-    ess, rhat = np.empty(d), np.empty(d)
-    for j in range(d):
-        ess[j], rhat[j] = ess_and_rhat(chains[:, :, j])
-    total = run_thin * extra
-    tau = taus.mean(axis=0) * run_thin
-    return kept, lps, total, tau, taus.max(axis=0) * run_thin, reliable, ess, rhat
-
-
-# --------------------------------------------------------------------------- sampling
-
-
-@functools.lru_cache(maxsize=64)
-def _neg_hessian(log_prob):
-    """Jitted Hessian of ``-log_prob``, cached per function."""
-    return jax.jit(jax.hessian(lambda t, a: -log_prob(t, a)))
-
-
-def _start_cov(log_prob, x0, args, cov0, ndim):
-    if cov0 is None:
-        h = np.asarray(_neg_hessian(log_prob)(jnp.asarray(x0), args))
-        w, v = np.linalg.eigh(0.5 * (h + h.T)) if np.all(np.isfinite(h)) else (None, None)
-        # a start off the mode (e.g. a sigma at its declared value, not at the data's)
-        # can have negative curvature along a few directions: the ball only needs a
-        # scale per direction, so those take |curvature| (a saddle-free Newton ball)
-        if w is None or np.min(np.abs(w)) <= 1e-12 * np.max(np.abs(w)):
-            raise AnalysisError(
-                "cannot build the walkers' start ball: the Hessian of -log_prob at x0 is "
-                "singular (a parameter is not identified by the data and its prior); "
-                f"eigenvalues {w}; pass cov0, e.g. the least-squares covariance"
-            )
-        return (v / np.abs(w)) @ v.T
-    c = np.asarray(cov0, dtype=float)
-    if c.ndim == 1:
-        c = np.diag(c)
-    if c.shape != (ndim, ndim):
-        raise InputError(f"cov0: got shape {c.shape}, expected ({ndim}, {ndim}) or ({ndim},)")
-    if not np.all(np.isfinite(c)) or np.any(np.diag(c) <= 0.0):
-        raise InputError(f"cov0: expected a finite covariance with a positive diagonal, got {c}")
-    return 0.5 * (c + c.T)
-
-
-def _sqrt_psd(c: np.ndarray) -> np.ndarray:
-    w, v = np.linalg.eigh(c)
-    return v * np.sqrt(np.clip(w, 0.0, None))
 
 
 @functools.lru_cache(maxsize=64)
@@ -238,8 +99,10 @@ def sample_posterior(
     min_ess: float = 400.0,
     tau_factor: float = 50.0,
     moves: str | None = None,
+    sampler: Literal["emcee", "lockstep"] = "emcee",
 ) -> Posterior:
-    """Sample a posterior with emcee from independent ensembles started around `x0`.
+    """Sample a posterior from independent ensembles started around `x0`, with emcee
+    or the lockstep JAX sampler.
 
     **Arguments:**
 
@@ -261,8 +124,8 @@ def sample_posterior(
       default): about half the smallest autocorrelation time, estimated on the
       unthinned draws (ESS and R-hat are then those of the stored draws).
     - `seed`: seeds every ensemble's start and random stream (reproducible).
-    - `progress`: tqdm progress bar per ensemble (emcee's); a callable also gets a
-      line before the diagnostics (a few seconds after the last bar).
+    - `progress`: tqdm progress bar per ensemble (emcee's; one for all of them with
+      the lockstep sampler); a callable also gets a line before the diagnostics.
     - `n_ensembles`: independent ensembles, for $\\hat R$ (see module doc).
     - `on_fail`: `"warn"` (`ConvergenceWarning`), `"raise"` (`ConvergenceError`)
       or `"ignore"` when the run does not meet the criteria below.
@@ -271,6 +134,12 @@ def sample_posterior(
       sampler, see `piecs_bayes.fit._moves`; never emcee 3.1.6's biased DE
       snooker move). DE mixes about twice as fast per step on correlated
       posteriors of ~20 dimensions (profile fits with nuisance parameters).
+    - `sampler`: ``"emcee"`` (emcee's `EnsembleSampler`, one ensemble after the
+      other) or ``"lockstep"``: the same ensembles and moves stepped together in
+      one jitted JAX loop ([`sample_posteriors`][] with one part, backend
+      ``"jax"``; no Python per step, several times emcee's effective samples per
+      second). Same diagnostics, verdict and `Posterior`; other random numbers;
+      `nwalkers` must be even.
     - `rhat_max`, `min_ess`, `tau_factor`: criteria: split $\\hat R \\le$ `rhat_max`,
       ESS $\\ge$ `min_ess`, kept chain $\\ge$ `tau_factor` $\\tau$ for every parameter.
 
@@ -281,6 +150,33 @@ def sample_posterior(
     x0, names, nwalkers, burn, thin_spec, thin, moves = _checked_run(
         x0, names, on_fail, nwalkers, nsteps, burn, thin, n_ensembles, moves
     )
+    criteria = {"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor}
+    if sampler == "lockstep":
+        post = sample_posteriors(
+            log_prob, x0[None], names=names, cov0=None if cov0 is None else np.asarray(cov0)[None],
+            args=jax.tree_util.tree_map(lambda a: jnp.asarray(a)[None], args), nwalkers=nwalkers,
+            nsteps=nsteps, burn=burn, thin=thin_spec, seed=seed, progress=progress,
+            n_ensembles=n_ensembles, init_scale=init_scale, on_fail="ignore", moves=moves,
+            backend="jax", **criteria,
+        )[0]  # fmt: skip
+    elif sampler == "emcee":
+        post = _sample_emcee(
+            log_prob, x0, names, cov0, args, nwalkers, nsteps, burn, thin_spec, thin, seed,
+            progress, n_ensembles, init_scale, moves, criteria,
+        )  # fmt: skip
+    else:
+        raise InputError(f"sampler: got {sampler!r}, expected 'emcee' or 'lockstep'", value=sampler)
+    if post.problems and on_fail != "ignore":
+        msg = "MCMC run has not converged:\n  " + "\n  ".join(post.problems)
+        if on_fail == "raise":
+            raise ConvergenceError(msg, posterior=post)
+        warnings.warn(msg, ConvergenceWarning, stacklevel=2)
+    return post
+
+
+def _sample_emcee(log_prob, x0, names, cov0, args, nwalkers, nsteps, burn, thin_spec, thin,
+                  seed, progress, n_ensembles, init_scale, moves, criteria):  # fmt: skip
+    """`sample_posterior` with emcee: the `Posterior` of the checked settings."""
     vec = _vectorised(log_prob)
 
     def f(p):
@@ -292,24 +188,17 @@ def sample_posterior(
     if callable(progress):
         progress("posterior diagnostics: autocorrelation times, ESS and R-hat per parameter")
     kept, lps, thin, tau, tau_max, reliable, ess, rhat = _diagnose(
-        np.stack(kept), np.stack(lps), thin, thin_spec, tau_factor
+        np.stack(kept), np.stack(lps), thin, thin_spec, criteria["tau_factor"]
     )  # kept: (K, S, W, d)
     problems = _problems(
         names, tau_max, reliable, ess, rhat, kept.shape[1], nsteps=nsteps, burn=burn, thin=thin,
-        nwalkers=nwalkers, rhat_max=rhat_max, min_ess=min_ess, tau_factor=tau_factor,
-        n_ensembles=n_ensembles,
+        nwalkers=nwalkers, n_ensembles=n_ensembles, **criteria,
     )  # fmt: skip
-    post = make_posterior(
+    return make_posterior(
         names, kept, lps, np.concatenate(acc), (tau, reliable, ess, rhat), problems,
-        nsteps=nsteps, burn=burn, thin=thin, wall_time=wall,
-        criteria={"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor},
+        nsteps=nsteps, burn=burn, thin=thin, wall_time=wall, criteria=dict(criteria),
+        sampler=f"emcee {emcee_module().__version__}",
     )  # fmt: skip
-    if problems and on_fail != "ignore":
-        msg = "MCMC run has not converged:\n  " + "\n  ".join(problems)
-        if on_fail == "raise":
-            raise ConvergenceError(msg, posterior=post)
-        warnings.warn(msg, ConvergenceWarning, stacklevel=2)
-    return post
 
 
 def _checked_run(x0, names, on_fail, nwalkers, nsteps, burn, thin, n_ensembles, moves):

@@ -15,8 +15,10 @@ nuisance parameter per declared uncertainty source, each with its prior:
 
 Likelihood: Gaussian, or Student-t (``nu`` degrees of freedom) as the robust
 Bayesian option, of the ball-centre residuals. The log posterior is one JAX
-function, jitted and vectorised over walkers, sampled with emcee from walkers
-started around the robust least-squares optimum.
+function, jitted and vectorised over walkers, sampled by independent ensembles
+started around the robust least-squares optimum: by default with the lockstep JAX
+sampler (the whole chain one jitted loop; `sampler="lockstep"`), or with emcee
+(`sampler="emcee"`); same moves, diagnostics and verdict.
 """
 
 from __future__ import annotations
@@ -31,14 +33,16 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import MachineTransform, Profile
+from ._batch_bayes import sample_posteriors
 from ._bayes import Posterior, gaussian_loglik, sample_posterior, student_t_loglik
 from ._inference_data import BayesData, inference_data, pointwise_over_draws, write_netcdf
 from ._measurement import SOURCE_EFFECTS, SOURCE_UNITS, probe_residuals
 from ._moves import check_moves
-from ._posterior import emcee_module, frozen
+from ._posterior import frozen
 from ._priors import prior_from_spec
 
-__all__ = ["BayesProfileFit", "profile_log_posterior", "fit_profile_bayes", "NUISANCE_SOURCES"]
+__all__ = ["BayesProfileFit", "profile_log_posterior", "fit_profile_bayes", "fit_profiles_bayes",
+           "NUISANCE_SOURCES"]  # fmt: skip
 
 #: Sources that enter the model as a nuisance parameter (``repeatability`` is sigma).
 NUISANCE_SOURCES = SOURCE_EFFECTS
@@ -357,6 +361,7 @@ def fit_profile_bayes(
     progress=True,
     on_fail: str = "warn",
     moves: str | None = "de",
+    sampler: str = "lockstep",
     part: str | None = None,
     file: str | None = None,
     lines=None,
@@ -373,9 +378,11 @@ def fit_profile_bayes(
     - `sources`: the study's uncertainty sources (prior specs).
     - `sigma`: the known probe repeatability (used unless ``repeatability`` is
       a source, in which case it is estimated with that prior).
-    - `nsteps`, `nwalkers`, `n_ensembles`, `seed`, `progress`, `on_fail`, `moves`:
-      sampler settings (see :func:`sample_posterior`); differential-evolution
-      moves by default (the nuisance parameters make the posterior correlated).
+    - `nsteps`, `nwalkers`, `n_ensembles`, `seed`, `progress`, `on_fail`, `moves`,
+      `sampler`: sampler settings (see :func:`sample_posterior`); the lockstep JAX
+      sampler (``"lockstep"``) by default, emcee with ``"emcee"``;
+      differential-evolution moves by default (the nuisance parameters make the
+      posterior correlated).
     - `lines`: the file line of each trigger (kept for the fit's `to_arviz()`).
 
     **Returns:** a :class:`BayesProfileFit`.
@@ -406,6 +413,7 @@ def fit_profile_bayes(
         n_ensembles=n_ensembles,
         on_fail=on_fail,
         moves=moves,
+        sampler=sampler,
     )
     data = BayesData(
         feature_ids=frozen(np.asarray(feature_ids).astype(str)),
@@ -414,7 +422,7 @@ def fit_profile_bayes(
         lines=None if lines is None else frozen(np.asarray(lines)),
         sources={k: dict(v) for k, v in sources.items()}, ball_radius=float(ball_radius),
         transform=transform, sigma=float(sigma), nu=float(nu), file=file,
-        sampler=f"emcee {emcee_module().__version__}", moves=check_moves(moves),
+        sampler=post.sampler, moves=check_moves(moves),
     )  # fmt: skip
     return BayesProfileFit(profile, post, lay, likelihood, part, data)
 
@@ -437,3 +445,86 @@ def _start(lay: _Layout, priors: dict, start: dict, start_cov: dict | None, sigm
         x0[lay.sigma_index] = sigma
         var0[lay.sigma_index] = (0.1 * sigma) ** 2
     return x0, np.where(var0 > 0, var0, 1e-12)
+
+
+def fit_profiles_bayes(
+    profile,
+    part_ids,
+    feature_ids,
+    machine_points,
+    *,
+    starts,
+    sources: dict,
+    ball_radius: float,
+    transform=None,
+    sigma: float,
+    likelihood: str = "gaussian",
+    nu: float = 4.0,
+    approach=None,
+    nsteps: int = 3000,
+    nwalkers: int | None = None,
+    n_ensembles: int = 4,
+    seed: int = 0,
+    progress=True,
+    on_fail: str = "warn",
+    moves: str | None = "de",
+    file: str | None = None,
+    lines=None,
+):
+    """[`fit_profile_bayes`][] for many parts: parts with the same pattern of
+    triggers (feature of each point, in order) share one compiled log posterior
+    and are sampled together by [`sample_posteriors`][].
+
+    **Arguments:** `part_ids`, `feature_ids`, `machine_points` (and `approach`)
+    (and `lines`) per trigger, as in `fit_profile_bayes`; `starts`: `{part: {feature: deviation}}`
+    (e.g. `BatchFit.values`); the rest as `fit_profile_bayes`.
+
+    **Returns:** `{part: BayesProfileFit}` in the order of first appearance.
+    """
+    from ..geometry import MachineTransform
+    from ._inference_data import BayesData
+
+    transform = MachineTransform() if transform is None else transform
+    part_ids = np.asarray(part_ids).astype(str)
+    feature_ids = np.asarray(feature_ids).astype(str)
+    machine_points = np.asarray(machine_points, dtype=float)
+    order = list(dict.fromkeys(part_ids.tolist()))
+    patterns: dict[tuple, list[str]] = {}
+    rows_of = {}
+    for p in order:
+        rows = np.flatnonzero(part_ids == p)
+        rows_of[p] = rows
+        patterns.setdefault(tuple(feature_ids[rows].tolist()), []).append(p)
+    out = {}
+    for g, (pattern, parts) in enumerate(patterns.items()):
+        log_prob, lay, priors = profile_log_posterior(
+            profile, pattern, sources=sources, ball_radius=ball_radius, transform=transform,
+            sigma=sigma, likelihood=likelihood, nu=nu, with_approach=approach is not None,
+            file=file,
+        )  # fmt: skip
+        x0 = np.zeros((len(parts), len(lay.names)))
+        for i, p in enumerate(parts):
+            for f, sl in lay.features:
+                x0[i, sl] = np.asarray(starts[p][f.id])
+            for name, k in lay.nuisance:
+                x0[i, k] = priors[name].mean
+            if lay.sigma_index is not None:
+                x0[i, lay.sigma_index] = sigma
+        pts = np.stack([machine_points[rows_of[p]] for p in parts])
+        appr = None if approach is None else np.stack([approach[rows_of[p]] for p in parts])
+        posts = sample_posteriors(
+            log_prob, x0, names=lay.names, args=(pts, appr), nwalkers=nwalkers, nsteps=nsteps,
+            seed=seed + g, progress=progress, n_ensembles=n_ensembles, on_fail=on_fail,
+            moves=moves,
+        )  # fmt: skip
+        for p, post in zip(parts, posts, strict=True):
+            r = rows_of[p]
+            data = BayesData(
+                feature_ids=feature_ids[r], machine_points=machine_points[r],
+                approach=None if approach is None else np.asarray(approach)[r],
+                lines=None if lines is None else np.asarray(lines)[r], sources=dict(sources),
+                ball_radius=float(ball_radius), transform=transform, sigma=float(sigma),
+                nu=float(nu), file=file, sampler=post.sampler, moves=check_moves(moves),
+            )  # fmt: skip
+            out[p] = BayesProfileFit(profile, post, lay, likelihood, p, data)
+    return {p: out[p] for p in order}

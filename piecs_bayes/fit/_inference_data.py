@@ -18,12 +18,14 @@ from the fit's draws and the data it was given ([`BayesData`][]):
   `PRIOR_DRAWS`); the deviations have flat (improper) priors and no draws.
 
 **chain** is one independent ensemble and **draw** its walkers' thinned
-trajectories one after the other (`Posterior.arviz_chains`), so `az.rhat`,
-`az.ess` and `az.summary` give the numbers the package reports. Every variable
-has a `units` attribute (`"mm"`, `"rad"`, `"1"` for a ratio); the run's settings
-(piecs_bayes version, sampler, moves, steps, burn, thin, ensembles, walkers) and
-the prior settings (`prior_sources`, JSON `{source: spec}`) are in the attrs of
-the `InferenceData` and of its posterior group.
+trajectories one after the other (`Posterior.arviz_chains`), thinned (`thin`,
+about half the smallest autocorrelation time), so `az.rhat`, `az.ess` and
+`az.summary` give the numbers the package reports. Every variable has a `units`
+attribute (`"mm"`, `"rad"`, `"1"` for a ratio); the run's settings (piecs_bayes
+version, sampler: `"piecs_bayes lockstep ensembles (jax)"` by default, `"emcee
+<version>"` when asked for; moves, steps, burn, thin, ensembles, walkers) and the
+prior settings (`prior_sources`, JSON `{source: spec}`) are in the attrs of the
+`InferenceData` and of its posterior group.
 
 **Why one variable per parameter, with a feature dim.** A variable holds one
 quantity in one unit: `offset[dia_24]` is in mm, `rotation[dia_24]` in rad. A

@@ -42,6 +42,9 @@ class Posterior:
       independent ensembles.
     - `converged`, `problems`: the verdict and, when false, why.
     - `wall_time`: seconds spent sampling (compilation excluded).
+    - `sampler`: what made the draws: ``"emcee <version>"`` (`sample_posterior`) or
+      ``"piecs_bayes lockstep ensembles (jax)"`` (the lockstep sampler, with its
+      backend).
     """
 
     names: tuple[str, ...]
@@ -61,6 +64,7 @@ class Posterior:
     thin: int
     wall_time: float
     criteria: dict[str, float] = field(default_factory=dict)
+    sampler: str = ""
 
     @property
     def samples(self) -> np.ndarray:
@@ -157,7 +161,7 @@ class Posterior:
         strings, arrays): sampler, ensembles, walkers, steps, burn, thin, the
         verdict, and per parameter (`parameter_names` order) R-hat, ESS and tau."""
         return {
-            "sampler": f"emcee {emcee_module().__version__} moves (piecs_bayes ensembles)",
+            "sampler": self.sampler or f"emcee {emcee_module().__version__}",
             "chain": "one independent ensemble",
             "draw": "walker-major: walker w's kept step s is draw w * steps + s",
             "n_ensembles": self.n_ensembles,
@@ -222,12 +226,13 @@ def import_arviz():
 
 
 def make_posterior(
-    names, kept, lps, acceptance, diag, problems, *, nsteps, burn, thin, wall_time, criteria
-) -> Posterior:
+    names, kept, lps, acceptance, diag, problems, *, nsteps, burn, thin, wall_time, criteria,
+    sampler,
+) -> Posterior:  # fmt: skip
     """The [`Posterior`][] of thinned draws `kept` `(K, S, W, d)` of `K` ensembles of
     `W` walkers and their log posteriors `lps` `(K, S, W)`; `acceptance` per walker,
     `diag` = `(tau, tau_reliable, ess, rhat)` per parameter, `problems` the failed
-    criteria (none: converged)."""
+    criteria (none: converged), `sampler` the name of what made them."""
     k, s, w, d = kept.shape
     tau, reliable, ess, rhat = diag
     return Posterior(
@@ -248,4 +253,5 @@ def make_posterior(
         thin=thin,
         wall_time=wall_time,
         criteria=criteria,
+        sampler=sampler,
     )

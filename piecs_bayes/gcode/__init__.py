@@ -6,6 +6,7 @@ Builds on `piecs_bayes.geometry` (features of the profile) and `piecs_bayes.erro
 neither `geometry` nor `io` imports this package.
 """
 
+from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._adjust import BlockChange as BlockChange
 from ._adjust import BlockMap as BlockMap
 from ._adjust import ProgramAdjustment as ProgramAdjustment

@@ -1,5 +1,6 @@
 """Geometry of turned profiles: pure, differentiable JAX functions; no files, no fits."""
 
+from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._curves import Arc as Arc
 from ._curves import Feature as Feature
 from ._curves import Line as Line

@@ -70,6 +70,16 @@ def profile_side(chain: list[dict], internal: bool = False) -> int:
     return -1 if material_left else 1
 
 
+def _tangent(f: Feature, which: str) -> np.ndarray:
+    """`f.tangent_at(which)` in NumPy (loading a study dispatches no JAX operation)."""
+    if isinstance(f, Arc):
+        radial = np.subtract(f.p0 if which == "start" else f.p1, f.center) / f.radius
+        t = np.array([radial[1], -radial[0]])  # left_normal
+        return t if f.ccw else -t
+    d = np.subtract(f.p1, f.p0, dtype=float)
+    return d / math.hypot(*d)
+
+
 def _turn_angle(t0, t1) -> float:
     t0, t1 = np.asarray(t0), np.asarray(t1)
     cross = t0[1] * t1[0] - t0[0] * t1[1]  # drawing frame (z, x) cross product
@@ -101,7 +111,7 @@ class Profile:
                     f"but {b.id!r} starts at (x={b.p0[0]:g}, z={b.p0[1]:g}), gap {gap:.6g} mm",
                     b.id,
                 )
-            ang = _turn_angle(a.tangent_at("end"), b.tangent_at("start"))
+            ang = _turn_angle(_tangent(a, "end"), _tangent(b, "start"))
             angles.append(ang)
             kinds.append("tangent" if abs(ang) < self.tangent_tol_deg else "sharp")
         object.__setattr__(self, "junctions", tuple(kinds))

@@ -16,7 +16,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._curves import rotate
 
@@ -43,9 +45,24 @@ def machine_to_part(points, params):
     ``params`` is a :class:`MachineTransform` or its 5-vector
     ``(x_centre, z_offset, scale_x, scale_z, rotation)`` (differentiable).
     """
-    t = params.as_array() if isinstance(params, MachineTransform) else jnp.asarray(params)
-    pts = jnp.asarray(points)
-    u = pts - jnp.stack([t[0], t[1]])
+    if isinstance(params, MachineTransform) and not isinstance(points, jax.core.Tracer):
+        return _machine_to_part_np(np.asarray(points, dtype=float), params)
+    t = params.as_array() if isinstance(params, MachineTransform) else params
+    return _machine_to_part(points, t)
+
+
+def _machine_to_part_np(pts: np.ndarray, tr: MachineTransform) -> np.ndarray:
+    """`machine_to_part` of concrete points in NumPy (no JAX dispatch: loading data)."""
+    u = (pts - [tr.x_centre, tr.z_offset]) * [1.0 + tr.scale_x, 1.0 + tr.scale_z]
+    c, s = np.cos(tr.rotation), np.sin(tr.rotation)
+    x, z = u[..., 0], u[..., 1]
+    return np.stack([c * x + s * z, -s * x + c * z], axis=-1)
+
+
+@jax.jit  # one compiled call, not ~10 eager operations (loading a study, the CLI)
+def _machine_to_part(points, t):
+    t = jnp.asarray(t, dtype=float)
+    u = jnp.asarray(points, dtype=float) - jnp.stack([t[0], t[1]])
     s = u * jnp.stack([1.0 + t[2], 1.0 + t[3]])
     return rotate(s, t[4])
 

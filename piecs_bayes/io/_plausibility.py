@@ -134,16 +134,41 @@ def _likely_cause(profile, feature, machine, transform, ball_radius, limits, dis
     )
 
 
+def _hash(strings: np.ndarray) -> np.ndarray:
+    """A uint64 hash of each string of a ``<U`` array (equal strings, equal hashes)."""
+    a = np.ascontiguousarray(strings, dtype=str)
+    codes = a.view(np.uint32).reshape(len(a), -1)
+    h = np.zeros(len(a), dtype=np.uint64)
+    for k in range(codes.shape[1]):
+        h = h * np.uint64(1000003) ^ codes[:, k]
+    return h
+
+
 def drop_duplicates(probe, *, policy: str = "drop"):
     """`probe` without repeated triggers (same part, feature and coordinates)."""
-    key = np.rec.fromarrays([probe.part, probe.feature, probe.points[:, 0], probe.points[:, 1]])
+    # only rows of equal hashes can repeat a trigger: sort the hashes (a million rows in
+    # a fraction of a second), then compare those rows' records
+    if len(probe) < 2:
+        return probe
+    x, z = probe.points[:, 0], probe.points[:, 1]
+    key = _hash(probe.part) ^ (_hash(probe.feature) * np.uint64(0x9E3779B97F4A7C15))
+    for v in (x, z):
+        key = key * np.uint64(1000003) ^ (v + 0.0).view(np.uint64)  # + 0.0: -0.0 is 0.0
+    ordered = np.sort(key)
+    same = ordered[1:] == ordered[:-1]
+    if not same.any():
+        return probe
+    cand = np.isin(key, ordered[1:][same])
+    rows = np.flatnonzero(cand)
+    key = np.rec.fromarrays([probe.part[rows], probe.feature[rows], x[rows], z[rows]])
     _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-    dup = np.ones(len(probe), dtype=bool)
-    dup[first] = False
+    dup = np.zeros(len(probe), dtype=bool)
+    dup[rows] = True
+    dup[rows[first]] = False
     if not dup.any():
         return probe
     i = int(np.flatnonzero(dup)[0])
-    j = int(first[inverse.reshape(-1)[i]])
+    j = int(rows[first[inverse.reshape(-1)[np.searchsorted(rows, i)]]])
     files = probe.file.split(",")
     where = f"line {int(probe.lines[i])} repeats line {int(probe.lines[j])}"
     fid = str(probe.feature[i])

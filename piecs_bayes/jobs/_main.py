@@ -3,7 +3,8 @@
 One call composes the public API in the order an engineer works:
 
 1. read the study and its probe data; **robust fit** of every feature of one part;
-2. **Bayesian fit** (emcee) with the study's error sources as nuisance parameters;
+2. **Bayesian fit** (lockstep ensembles, one jitted JAX loop) with the study's error
+   sources as nuisance parameters;
 3. **decisions** per feature (compensate with a gain, do not compensate, measure
    more), from the robust fit's normal deviations (`jobs.decide_study`);
 4. the **adjusted tool path** (PIECS mirroring with the decisions' gains);
@@ -226,10 +227,7 @@ def _step_bayes(run: _Run, bayes: bool, nsteps, seed) -> None:
         run.skipped.append("bayes")
         return
     steps = run.study.fit.bayes_steps if nsteps is None else nsteps
-    run.say(
-        f"sampling the posterior (emcee, {run.study.fit.bayes_ensembles} ensembles x {steps} "
-        "steps)"
-    )
+    run.say(f"sampling the posterior ({run.study.fit.bayes_ensembles} ensembles x {steps} steps)")
     fit = None
     with run.timed("bayes"), warnings.catch_warnings(record=True) as ws:
         warnings.simplefilter("always")

@@ -20,30 +20,24 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import asdict, dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
+from ..errors import InputError
 from ..geometry import (
     Arc,
     Line,
     MachineTransform,
     Profile,
-    drawn_limits,
     make_feature,
     part_to_machine,
     profile_side,
 )
+from ._sim_files import probe_csv_text, study_toml_text
 
-__all__ = [
-    "ProcessErrors",
-    "demo_profile",
-    "process_deviations",
-    "simulate_probe",
-    "simulate_parts",
-    "probe_csv_text",
-    "write_demo",
-    "write_batch",
-]
+__all__ = ["ProcessErrors", "demo_profile", "process_deviations", "simulate_probe",
+           "simulate_parts", "probe_csv_text", "write_demo", "write_batch"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -260,86 +254,6 @@ def simulate_parts(
     }
 
 
-def probe_csv_text(
-    sim: dict, *, part: str | None = None, x_mode: str = "diameter", header: str = ""
-) -> str:
-    """The probe CSV a machine would write for ``sim`` (X doubled in diameter mode)."""
-    xs = 2.0 if x_mode == "diameter" else 1.0
-    lines = [f"# {line}" for line in header.splitlines()]
-    cols = (["part"] if part else []) + ["feature", "x", "z", "approach_x", "approach_z"]
-    lines.append(",".join(cols))
-    for fid, (x, z), (ax, az) in zip(sim["feature"], sim["points"], sim["approach"], strict=True):
-        row = ([part] if part else []) + [
-            fid,
-            f"{x * xs:.5f}",
-            f"{z:.5f}",
-            f"{ax:.6f}",
-            f"{az:.6f}",
-        ]
-        lines.append(",".join(row))
-    return "\n".join(lines) + "\n"
-
-
-def _toml_point(p, xs):
-    return f"[{p[0] * xs:.4f}, {p[1]:.4f}]"
-
-
-def study_toml_text(
-    profile: Profile,
-    *,
-    name: str,
-    probe_files: list[str],
-    program: str | None,
-    ball_radius: float,
-    ball_radius_u: float,
-    repeatability: float,
-    transform: MachineTransform,
-    extra: str = "",
-) -> str:
-    """A study file for ``profile`` (X written as diameters)."""
-    out = [
-        "# piecs_bayes study file (see docs/formats.md). Lengths in mm.",
-        "[study]",
-        f'name = "{name}"',
-        'units = "mm"',
-        "probe_files = [" + ", ".join(f'"{p}"' for p in probe_files) + "]",
-    ]
-    if program:
-        out.append(f'part_program = "{program}"')
-    out += [
-        "",
-        "[profile]",
-        'kind = "external"',
-        'x_mode = "diameter"        # X of the points below are diameters',
-        "tangent_tolerance_deg = 0.5",
-    ]
-    for f in profile.features:
-        out += ["", "[[profile.feature]]", f'id = "{f.id}"', f'type = "{f.kind}"']
-        out.append(f"start = {_toml_point(f.p0, 2)}")
-        out.append(f"end = {_toml_point(f.p1, 2)}")
-        if isinstance(f, Arc):
-            out.append(f"center = {_toml_point(f.center, 2)}")
-            out.append(f'direction = "{"ccw" if f.ccw else "cw"}"')
-        lo, hi = drawn_limits(f)
-        out += [f"tolerance = [{lo:.4f}, {hi:.4f}]", f'tolerance_on = "{f.tolerance_on}"']
-    out += [
-        "",
-        "[probe]",
-        f"ball_radius = {ball_radius}",
-        f"ball_radius_u = {ball_radius_u}",
-        f"repeatability = {repeatability}",
-        'x_mode = "diameter"         # the probe files write X as diameters',
-        "",
-        "[machine]                    # machine -> part transform",
-        f"x_centre = {transform.x_centre}",
-        f"z_offset = {transform.z_offset}",
-        f"scale_x = {transform.scale_x}",
-        f"scale_z = {transform.scale_z}",
-        f"rotation = {transform.rotation}",
-    ]
-    return "\n".join(out) + "\n" + extra
-
-
 DEMO_ERRORS = ProcessErrors(
     tool_offset_x=0.012,
     tool_offset_z=-0.008,
@@ -473,7 +387,12 @@ def write_demo(out_dir, *, seed: int = 20261123) -> dict:
 
 
 def write_batch(
-    out_dir, *, n_parts: int = 36, tool_change_at: int = 21, seed: int = 7
+    out_dir,
+    *,
+    n_parts: int = 36,
+    tool_change_at: int = 21,
+    seed: int = 7,
+    points: int | None = None,
 ) -> list[dict]:
     """A production run of ``n_parts`` demo shafts for a capability study.
 
@@ -487,11 +406,15 @@ def write_batch(
     - part-to-part scatter (material, temperature) of 0.8 um in X and Z;
     - a **tool change** before part ``tool_change_at``: the new insert sits 6 um
       small in X and 3 um long in Z, and its wear starts from zero (a step of
-      about -12 um on every diameter: the stability check must find it).
+      about -12 um on every diameter: the stability check must find it); in a run
+      longer than ``2 (tool_change_at - 1)`` parts every insert lasts
+      ``tool_change_at - 1`` parts, each new one set as the second.
 
-    Probe noise 1.5 um, 8-10 points per feature (as the demo part). Writes one
-    probe file per part (``partNN.csv`` with a ``part`` column), ``study.toml``
-    and ``truth.json`` (the process errors and the exact deviations per part).
+    Probe noise 1.5 um, 6-10 points per feature (as the demo part), or ``points``
+    per feature (dense probing, e.g. a scanning probe: ``--points 512``). Writes one
+    probe file per part (``partNN.csv``, zero-padded to sort in production order,
+    with a ``part`` column), ``study.toml`` and ``truth.json`` (the process errors
+    and the exact deviations per part).
     """
     from pathlib import Path
 
@@ -508,10 +431,11 @@ def write_batch(
         wear_rate=wear_per_part / cut_length,
         chuck_z=-100.0,
     )
-    truths = [
-        _batch_part(out, k, base, profile, rng, tool_change_at, cut_length, seed)
-        for k in range(1, n_parts + 1)
-    ]
+    if points is not None and int(points) < 3:  # a circle needs 3
+        raise InputError(f"points per feature must be at least 3, got {points}", value=points)
+    pts = DEMO_POINTS if points is None else int(points)
+    run = _Run(profile, base, tool_change_at, cut_length, seed, pts, max(2, len(str(n_parts))))
+    truths = [_batch_part(out, k, run, rng) for k in range(1, n_parts + 1)]
     write_text_atomic(
         out / "study.toml",
         study_toml_text(
@@ -531,44 +455,68 @@ def write_batch(
         "(mm, rad) and the process errors that made them.",
         "seed": seed,
         "tool_change_at": tool_change_at,
-        "tool_change_part": f"part{tool_change_at:02d}",
+        "tool_change_part": run.name(tool_change_at),
         "wear_per_part_mm": wear_per_part,
         "part_to_part_sd_mm": 0.0008,
         "probe": {"ball_radius": 1.0, "repeatability": 0.0015},
         "parts": truths,
     }
+    if points is not None:
+        doc["points_per_feature"] = int(points)
+    changes = [t["part"] for t in truths if t["tool_change"]]
+    if len(changes) > 1:  # a long run: every insert lasts tool_change_at - 1 parts
+        doc["tool_change_parts"] = changes
     write_text_atomic(out / "truth.json", json.dumps(doc, indent=2) + "\n")
     return truths
 
 
-def _batch_part(out, k: int, base, profile, rng, tool_change_at, cut_length, seed) -> dict:
+class _Run(NamedTuple):
+    """What every part of a simulated batch shares."""
+
+    profile: Profile
+    base: ProcessErrors
+    tool_change_at: int
+    cut_length: float
+    seed: int
+    points: int | dict
+    width: int
+
+    def name(self, k: int) -> str:
+        return f"part{k:0{self.width}d}"
+
+    @property
+    def life(self) -> int:
+        return max(self.tool_change_at - 1, 1)
+
+
+def _batch_part(out, k: int, run: _Run, rng) -> dict:
     """Simulate and write part `k` of the batch; its truth record."""
     from ..io import write_text_atomic
 
-    after = k >= tool_change_at
-    parts_on_tool = k - (tool_change_at if after else 1)
+    after = k >= run.tool_change_at
+    parts_on_tool = (k - 1) % run.life  # an insert lasts `tool_change_at - 1` parts
     err = replace(
-        base,
+        run.base,
         tool_offset_x=(-0.004 if after else 0.002) + rng.normal(0.0, 0.0008),
         tool_offset_z=(0.003 if after else -0.008) + rng.normal(0.0, 0.0008),
-        wear_start=cut_length * parts_on_tool,  # mm of cut on this edge before this part
+        wear_start=run.cut_length * parts_on_tool,  # mm of cut on this edge before this part
     )
-    truth = process_deviations(profile, err)
+    truth = process_deviations(run.profile, err)
     sim = simulate_probe(
-        profile, truth, ball_radius=1.0, transform=DEMO_TRANSFORM, points=DEMO_POINTS,
+        run.profile, truth, ball_radius=1.0, transform=DEMO_TRANSFORM, points=run.points,
         noise_sd=0.0015, rng=rng,
     )  # fmt: skip
     text = probe_csv_text(
-        sim, part=f"part{k:02d}", x_mode="diameter",
-        header=f"Simulated batch part {k} (seed {seed}).",
+        sim, part=run.name(k), x_mode="diameter",
+        header=f"Simulated batch part {k} (seed {run.seed}).",
     )  # fmt: skip
-    write_text_atomic(out / f"part{k:02d}.csv", text)
+    write_text_atomic(out / f"{run.name(k)}.csv", text)
     return {
-        "part": f"part{k:02d}",
-        "tool_change": k == tool_change_at,
+        "part": run.name(k),
+        "tool_change": after and parts_on_tool == 0,
         "process_errors": asdict(err),
         "deviations": {
-            fid: dict(zip(profile[fid].param_names, map(float, d), strict=True))
+            fid: dict(zip(run.profile[fid].param_names, map(float, d), strict=True))
             for fid, d in truth.items()
         },
     }

@@ -1,6 +1,7 @@
 """How sure: the characteristic of a feature (normal deviation and its u), GUM and
 Monte Carlo (JCGM 101) propagation to the adjusted tool path, bands, budgets."""
 
+from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._bands import Bands as Bands
 from ._bands import bands_from_samples as bands_from_samples
 from ._bands import bands_linear as bands_linear

@@ -37,10 +37,12 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy import stats
-from scipy.stats import qmc
 
+from .. import _config
 from ..errors import InputError
+
+stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
+qmc = _config.LazyModule("scipy.stats.qmc")
 
 __all__ = ["Bands", "bands_from_samples", "bands_linear"]
 

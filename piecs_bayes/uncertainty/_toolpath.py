@@ -488,14 +488,17 @@ def monte_carlo_toolpath(
         else jnp.zeros((len(take), f.nparams))
         for f in profile.features
     )
-    path_f = path_function(profile, grid, gain)
-    verts, offs = _batched_path(profile, grid, _gain_key(gain))(stacked)
+    batched = _batched_path(profile, grid, _gain_key(gain))
+    verts, offs = batched(stacked)
     verts, offs = np.asarray(verts), np.asarray(offs)
     vcov = np.array([np.cov(verts[:, j, :], rowvar=False) for j in range(verts.shape[1])])
     means = {
         f.id: np.asarray(s).mean(axis=0) for f, s in zip(profile.features, stacked, strict=True)
     }
-    center_v, center_o = path_f(tuple(jnp.asarray(means[f.id]) for f in profile.features))
+    # the path at the mean: the same compiled call as the draws (no eager operations)
+    center_v, center_o = (
+        np.asarray(a)[0] for a in batched(tuple(means[f.id][None] for f in profile.features))
+    )
     bands = bands_from_samples(offs, center=np.asarray(center_o), p=p)
     q = [0.5 - p / 2, 0.5 + p / 2]
     vq = np.quantile(verts, q, axis=0)

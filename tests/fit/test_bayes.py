@@ -199,6 +199,30 @@ def _toy2(theta, args):
     return -0.5 * (theta[0] ** 2 + (theta[1] - 0.8 * theta[0]) ** 2 / 0.36)
 
 
+def test_tau_is_emcees_integrated_time():
+    """`_taus` (batched FFTs) gives emcee's `integrated_time` per ensemble, to
+    rounding, for long and short chains; a stuck walker gives NaN, as in emcee."""
+    import emcee
+
+    from piecs_bayes.fit._bayes_core import _taus
+
+    rng = np.random.default_rng(11)
+    k, s, w, d = 2, 700, 40, 3
+    x = np.empty((k, s, w, d))
+    x[:, 0] = rng.standard_normal((k, w, d))
+    phi = np.array([0.5, 0.9, 0.97])  # tau 3, 19, 66
+    for t in range(1, s):
+        x[:, t] = phi * x[:, t - 1] + np.sqrt(1 - phi**2) * rng.standard_normal((k, w, d))
+    for kept in (x, x[:, :9], x[:, :100]):
+        ref = [emcee.autocorr.integrated_time(e, c=5, tol=0, quiet=True) for e in kept]
+        assert np.allclose(_taus(kept), np.maximum(ref, 1e-12), rtol=1e-12, atol=0)
+    stuck = x[:, :50].copy()
+    stuck[0, :, 3, 1] = 1.0
+    with np.errstate(invalid="ignore"):
+        tau = _taus(stuck)
+    assert np.isnan(tau[0, 1]) and np.isfinite(np.delete(tau.ravel(), 1)).all()
+
+
 def test_split_rhat_matches_arviz_across_ensembles(newcomb):
     _, _, post = newcomb
     from piecs_bayes.fit._posterior import import_arviz as _import_arviz
@@ -261,11 +285,16 @@ def _toy(theta, args):
     return -0.5 * jnp.sum(theta**2)
 
 
-def test_short_run_warns_with_advice():
+SAMPLERS = ["emcee", "lockstep"]  # sample_posterior's two samplers
+
+
+@pytest.mark.parametrize("sampler", SAMPLERS)
+def test_short_run_warns_with_advice(sampler):
     with pytest.warns(ConvergenceWarning) as rec:
         post = sample_posterior(
-            _toy, np.zeros(2), names=("a", "b"), nsteps=40, seed=0, progress=False, min_ess=1e6
-        )
+            _toy, np.zeros(2), names=("a", "b"), nsteps=40, seed=0, progress=False, min_ess=1e6,
+            sampler=sampler,
+        )  # fmt: skip
     msg = str(rec[0].message)
     assert "not converged" in msg
     assert re.search(r"increase nsteps to >= \d+", msg)  # tau advice, with the number
@@ -273,29 +302,38 @@ def test_short_run_warns_with_advice():
     assert "nwalkers" in msg  # ESS advice
     assert "tau" in msg
     assert not post.converged and post.problems
+    assert msg.startswith("MCMC run has not converged")  # one part: no "part 0"
 
 
-def test_short_run_can_raise():
-    with pytest.raises(ConvergenceError, match="increase nsteps"):
+@pytest.mark.parametrize("sampler", SAMPLERS)
+def test_short_run_can_raise(sampler):
+    with pytest.raises(ConvergenceError, match="increase nsteps") as err:
         sample_posterior(
             _toy, np.zeros(2), names=("a", "b"), nsteps=40, seed=0, progress=False,
-            on_fail="raise",
+            on_fail="raise", sampler=sampler,
         )  # fmt: skip
+    assert err.value.posterior.names == ("a", "b")  # the Posterior itself, not a list
+    assert err.value.posterior.sampler.startswith(
+        "emcee" if sampler == "emcee" else "piecs_bayes lockstep ensembles (jax)"
+    )
 
 
-def test_same_seed_same_chains_and_start_ball_respects_support():
+@pytest.mark.parametrize("sampler", SAMPLERS)
+def test_same_seed_same_chains_and_start_ball_respects_support(sampler):
     # half-normal prior: walkers drawn below 0 are redrawn, never start at -inf
     prior = HalfNormal(1.0)
 
     def lp(theta, args):
         return prior.log_pdf(theta[0]) - 0.5 * theta[1] ** 2
 
-    kw = dict(names=("s", "m"), cov0=[1.0, 1.0], nsteps=60, seed=5, progress=False)
+    kw = dict(names=("s", "m"), cov0=[1.0, 1.0], nsteps=60, progress=False, sampler=sampler)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)  # a 60-step run, on purpose
-        a = sample_posterior(lp, np.array([0.5, 0.0]), **kw)
-        b = sample_posterior(lp, np.array([0.5, 0.0]), **kw)
-    assert np.array_equal(a.chains, b.chains)
+        a = sample_posterior(lp, np.array([0.5, 0.0]), seed=5, **kw)
+        b = sample_posterior(lp, np.array([0.5, 0.0]), seed=5, **kw)
+        c = sample_posterior(lp, np.array([0.5, 0.0]), seed=6, **kw)
+    assert np.array_equal(a.chains, b.chains) and np.array_equal(a.log_prob, b.log_prob)
+    assert not np.array_equal(a.chains, c.chains)
     assert np.all(a.samples[:, 0] >= 0.0)
 
 
@@ -308,6 +346,12 @@ def test_bad_arguments_are_named():
         sample_posterior(_toy, np.zeros(2), names="ab", cov0=np.eye(3), progress=False)
     with pytest.raises(InputError, match="on_fail"):
         sample_posterior(_toy, np.zeros(2), names="ab", on_fail="maybe", progress=False)
+    with pytest.raises(InputError, match="sampler: got 'nuts'"):
+        sample_posterior(_toy, np.zeros(2), names="ab", progress=False, sampler="nuts")
+    with pytest.raises(InputError, match="cov0"):
+        sample_posterior(
+            _toy, np.zeros(2), names="ab", cov0=np.eye(3), progress=False, sampler="lockstep"
+        )
 
 
 # --------------------------------------------------------------------------- likelihoods
@@ -389,3 +433,13 @@ def test_progress_bar_per_ensemble(capsys):
         sample_posterior(_toy, np.zeros(2), names="ab", nsteps=20, n_ensembles=2, progress=True)
     err = capsys.readouterr().err
     assert "emcee ensemble 1/2" in err and "emcee ensemble 2/2" in err
+
+
+def test_lockstep_progress_bar_and_diagnostics_line(capsys):
+    lines = []
+    with pytest.warns(ConvergenceWarning):
+        sample_posterior(
+            _toy, np.zeros(2), names="ab", nsteps=20, progress=lines.append, sampler="lockstep"
+        )  # one compilation with the short runs above: same model, ensembles and walkers
+    assert "lockstep sampler (4 ensembles)" in capsys.readouterr().err
+    assert lines == ["posterior diagnostics: autocorrelation times, ESS and R-hat per parameter"]

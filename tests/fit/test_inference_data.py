@@ -84,7 +84,7 @@ def test_attrs_name_the_run_and_the_priors(demo):
     post = bayes.posterior
     for attrs in (idata.attrs, idata.posterior.attrs):
         assert attrs["piecs_bayes_version"]
-        assert attrs["sampler"].startswith("emcee") and attrs["moves"] == "de"
+        assert attrs["sampler"].startswith("piecs_bayes lockstep") and attrs["moves"] == "de"
         run = (attrs["nsteps"], attrs["burn"], attrs["thin"])
         assert run == (post.nsteps, post.burn, post.thin)
         assert (attrs["n_ensembles"], attrs["nwalkers"]) == (2, post.nwalkers)

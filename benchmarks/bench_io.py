@@ -1,0 +1,155 @@
+"""Probe CSV reading speed: the reader, its row-by-row reference, pandas (issue 16).
+
+    .venv/bin/python benchmarks/bench_io.py                 # 1,000,000 rows
+    .venv/bin/python benchmarks/bench_io.py --rows 200000 --repeat 5
+
+Writes a probe CSV of `--rows` rows (the shipped batch's rows, ``part,feature,x,z,
+approach_x,approach_z``, repeated under new part ids) to a temporary folder, reads
+it once so that it is in the page cache, then times, side by side in this one run:
+
+- `read_probe_csv` (the vectorised fast path), best of `--repeat`;
+- `read_probe_csv_by_rows` (the row-by-row reader it replaces), one run (slow);
+- `pandas.read_csv` of the same file (no validation: the anchor), best of `--repeat`;
+- `jobs.load_probe_data` with the batch study (reading, then the plausibility
+  checks: distances, positions, repeated triggers), best of `--repeat`;
+- `read_probe_csv` of the same file with one bad cell at row 500,123 (or the
+  last row), which must name that row's line exactly as the row reader does,
+  best of `--repeat`.
+
+Prints rows per second of each (wall clock, and CPU time of this process, which a
+busy machine disturbs less) and checks that both readers give identical arrays.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("JAX_PLATFORMS", "cpu")
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from piecs_bayes.errors import InputError  # noqa: E402
+from piecs_bayes.io import load_study, read_probe_csv  # noqa: E402
+from piecs_bayes.io._probe import read_probe_csv_by_rows  # noqa: E402
+from piecs_bayes.jobs import load_probe_data  # noqa: E402
+
+BATCH = ROOT / "data" / "batch"
+
+
+def write_probe_csv(path: Path, rows: int) -> None:
+    """`rows` probe triggers: the rows of the shipped batch (data/batch/part*.csv), part
+    after part, each repeat under new part ids (so every point passes the batch study's
+    plausibility checks and no trigger repeats)."""
+    head, body = None, []
+    for f in sorted(BATCH.glob("part*.csv")):
+        lines = [ln for ln in f.read_text().splitlines() if ln and not ln.startswith("#")]
+        head = lines[0]
+        body += [ln.split(",", 1)[1] for ln in lines[1:]]
+    out = ["# Simulated for benchmarks/bench_io.py from data/batch", head]
+    k = 0
+    while len(out) < rows + 2:
+        out += [f"p{k:06d},{r}" for r in body]
+        k += 1
+    path.write_text("\n".join(out[: rows + 2]) + "\n")
+
+
+def best(fn, repeat: int) -> tuple[float, float]:
+    """The best wall-clock and the best CPU seconds (this process) of `repeat` runs."""
+    wall, cpu = [], []
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        fn()
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return min(wall), min(cpu)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rows", type=int, default=1_000_000)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--no-rows-reader", action="store_true", help="skip the slow row reader")
+    args = ap.parse_args()
+    import pandas as pd
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "probe_big.csv"
+        t0 = time.perf_counter()
+        write_probe_csv(path, args.rows)
+        size = path.stat().st_size
+        print(f"wrote {args.rows:,} rows ({size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")
+        path.read_bytes()  # page cache
+
+        study = load_study(BATCH / "study.toml")
+        kw = {"x_mode": study.probe.x_mode, "features": study.profile.ids}
+
+        def fast():
+            return read_probe_csv(path, **kw)
+
+        t_fast = best(fast, args.repeat)
+        t_pd = best(lambda: pd.read_csv(path, comment="#"), args.repeat)
+        load_probe_data(study, [path])  # the plausibility checks' JAX code traced
+        t_load = best(lambda: load_probe_data(study, [path]), args.repeat)
+        t_rows = None
+        if not args.no_rows_reader:
+            t0, c0 = time.perf_counter(), time.process_time()
+            ref = read_probe_csv_by_rows(path, **kw)
+            t_rows = time.perf_counter() - t0, time.process_time() - c0
+            got = fast()
+            for f in ("feature", "points", "lines", "part", "approach"):
+                a, b = getattr(got, f), getattr(ref, f)
+                assert a.dtype == b.dtype and a.shape == b.shape, f
+                assert a.tolist() == b.tolist() if a.dtype.kind == "U" else (
+                    a.tobytes() == b.tobytes()
+                ), f  # fmt: skip
+            print("fast path and row reader: identical arrays")
+
+        bad_row = min(500_123, args.rows)
+        text = path.read_text().split("\n")
+        line = bad_row + 2  # a comment and the header come first
+        cells = text[line - 1].split(",")
+        cells[2] = "26.0O5"  # a letter O for a zero
+        text[line - 1] = ",".join(cells)
+        bad = Path(tmp) / "probe_bad.csv"
+        bad.write_text("\n".join(text))
+        msg = "no error"
+
+        def fails():
+            nonlocal msg
+            try:
+                read_probe_csv(bad, **kw)
+            except InputError as exc:
+                msg = str(exc)
+
+        t_bad = best(fails, args.repeat)
+        assert f"probe_bad.csv:{line}," in msg, msg
+
+    n = args.rows
+
+    def row(name, t):
+        print(f"| {name} | {t[0]:.3f} | {n / t[0]:,.0f} | {t[1]:.3f} | {n / t[1]:,.0f} |")
+
+    print()
+    print("| reader | wall s | rows/s | CPU s | rows/CPU-s |")
+    print("|---|---:|---:|---:|---:|")
+    row("read_probe_csv (fast path, validated)", t_fast)
+    if t_rows is not None:
+        row("read_probe_csv_by_rows (row reader)", t_rows)
+    row("pandas.read_csv (anchor, no checks)", t_pd)
+    row("jobs.load_probe_data (read + plausibility)", t_load)
+    row(f"read_probe_csv, bad cell at row {bad_row:,}", t_bad)
+    print()
+    print(f"bad cell: {msg}")
+    if t_rows is not None:
+        print(f"fast path / row reader: {t_rows[0] / t_fast[0]:.1f}x wall")
+    print(f"fast path / pandas.read_csv: {t_pd[0] / t_fast[0]:.2f}x wall (>1: faster than pandas)")
+    print(f"load average {os.getloadavg()[0]:.2f} (1 min), {os.cpu_count()} CPUs")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,53 @@
+"""The command line starts at once (issue 16): parsing the arguments (`--help`) imports
+no JAX, and every subpackage that computes switches JAX to float64 when imported."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SUBPACKAGES = ("geometry", "io", "gcode", "fit", "compensate", "uncertainty", "jobs", "export")
+
+
+def _python(code: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    return subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+
+
+def test_building_the_parser_and_help_import_no_jax():
+    code = (
+        "import sys, contextlib, io\n"
+        "import piecs_bayes, piecs_bayes.cli\n"
+        "parser = piecs_bayes.cli.build_parser()\n"
+        "for argv in (['--help'], ['fit', '--help'], ['compensate', '--help']):\n"
+        "    with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
+        "        piecs_bayes.cli.main(argv)\n"
+        "heavy = [m for m in ('jax', 'numpy', 'scipy', 'matplotlib', 'pandas') if m in sys.modules]\n"
+        "print(','.join(heavy))\n"
+    )
+    out = _python(code)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == ""
+
+
+@pytest.mark.parametrize("sub", SUBPACKAGES)
+def test_float64_is_on_after_importing_any_subpackage(sub):
+    out = _python(
+        f"import piecs_bayes.{sub}\n"
+        "import jax, jax.numpy as jnp\n"
+        "assert jax.config.jax_enable_x64\n"
+        "assert jnp.zeros(1).dtype == jnp.float64, jnp.zeros(1).dtype\n"
+    )
+    assert out.returncode == 0, out.stderr
+
+
+def test_the_cli_route_names_are_ios():
+    from piecs_bayes.cli._common import APPLY_ROUTES
+    from piecs_bayes.io import APPLY_ROUTES as IO_ROUTES
+
+    assert APPLY_ROUTES == IO_ROUTES

@@ -1,0 +1,156 @@
+"""One fast path (issue 16): `fit_study` (the CLI's and the main job's fit) runs the
+batch kernel, every feature of the part in one compiled call (`fit_profile(solver=
+"auto")`), with the per-feature loop's results, errors and messages; its trace is
+kept across processes (`_config.persisted`), and a missing or broken file is traced
+again."""
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from piecs_bayes import _config
+from piecs_bayes.errors import AnalysisError, InputError
+from piecs_bayes.fit import fit_profile, to_part_frame
+from piecs_bayes.io import load_study
+from piecs_bayes.jobs import fit_options, fit_study, load_probe_data
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "data" / "demo" / "study.toml"
+BATCH = ROOT / "data" / "batch" / "study.toml"
+
+
+def _loop(study, probe, method, part=None):
+    """The per-feature loop (`fit_profile(solver="lm")`) on the same points."""
+    return fit_profile(
+        study.profile, probe.feature, to_part_frame(study.transform, probe.points),
+        **fit_options(study, method), lines=probe.lines, file=probe.file,
+        part=part if part is not None else probe.parts[0],
+    )  # fmt: skip
+
+
+def _assert_same_fit(loop, fast):
+    """The tolerances of tests/fit/test_batch.py (the batch path against the loop)."""
+    assert type(fast) is type(loop)
+    assert fast.part == loop.part and fast.unmeasured == loop.unmeasured
+    assert fast.method == loop.method and list(fast.fits) == list(loop.fits)
+    assert fast.sigma.source == loop.sigma.source and fast.sigma.dof == loop.sigma.dof
+    np.testing.assert_allclose(fast.sigma.value, loop.sigma.value, rtol=1e-6)
+    for fid, a in loop.fits.items():
+        b = fast[fid]
+        assert a.method == b.method and a.fixed == b.fixed
+        assert a.result.status == b.result.status and b.converged
+        np.testing.assert_array_equal(a.lines, b.lines)
+        np.testing.assert_allclose(b.points, a.points, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(a.outliers, b.outliers)
+        np.testing.assert_allclose(b.values, a.values, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(b.std_errors, a.std_errors, rtol=1e-6)
+        np.testing.assert_allclose(b.covariance, a.covariance, rtol=1e-6, atol=1e-30)
+        np.testing.assert_allclose(b.residuals, a.residuals, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(b.weights, a.weights, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(b.error_vectors, a.error_vectors, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(b.nominal_points, a.nominal_points, rtol=0, atol=1e-9)
+        assert b.result.n == a.result.n and b.result.dof == a.result.dof
+        np.testing.assert_allclose(b.residual_sd, a.residual_sd, rtol=1e-6)
+    assert [r["parameter"] for r in fast.rows()] == [r["parameter"] for r in loop.rows()]
+
+
+@pytest.mark.parametrize("method", ["robust", "lsq"])
+def test_fit_study_equals_the_per_feature_loop_on_the_demo_part(method):
+    study = load_study(DEMO)
+    probe = load_probe_data(study)
+    fast = fit_study(study, probe, method=method)
+    _assert_same_fit(_loop(study, probe, method), fast)
+    if method == "robust":  # the chip under the stylus on dia_30
+        assert fast["dia_30"].outliers.tolist() == [5]
+
+
+def test_fixed_parameters_known_sigma_and_a_missing_feature_equal_the_loop():
+    study = load_study(BATCH)
+    files = sorted(study.path.parent.glob("part*.csv"))[:3]
+    probe = load_probe_data(study, files)
+    keep = ~((probe.part == "part02") & (probe.feature == "shoulder"))
+    probe = probe.select(keep)
+    fixed = replace(study, fit=replace(study.fit, fix=("fillet.radius",)))
+    known = replace(study, fit=replace(study.fit, known_sigma=True))
+    for s, method in ((fixed, "robust"), (known, "lsq"), (study, "robust")):
+        for part in probe.parts:
+            one = probe.for_part(part)
+            fast = fit_study(s, probe, method=method, part=part)
+            _assert_same_fit(_loop(s, one, method, part), fast)
+    assert fit_study(study, probe, part="part02").unmeasured == ("shoulder",)
+    assert np.all(fit_study(fixed, probe, part="part01")["fillet"].values[2] == 0.0)
+
+
+def test_a_fit_that_fails_raises_the_loops_error():
+    study = load_study(DEMO)
+    probe = load_probe_data(study)
+    pts = probe.points.copy()
+    pts[np.flatnonzero(probe.feature == "dia_24")[2]] = np.nan
+    bad = replace(probe, points=pts)
+    with pytest.raises(AnalysisError) as loop:
+        _loop(study, bad, "robust")
+    with pytest.raises(AnalysisError) as fast:
+        fit_study(study, bad)
+    assert str(fast.value) == str(loop.value) and "non-finite" in str(fast.value)
+    assert fast.value.result is not None
+    assert fast.value.result.status == loop.value.result.status
+
+
+def test_input_errors_are_the_loops():
+    study = load_study(DEMO)
+    probe = load_probe_data(study)
+    rows = np.flatnonzero(probe.feature == "taper")
+    short = probe.select(~np.isin(np.arange(len(probe)), rows[2:]))
+    with pytest.raises(InputError) as loop:
+        _loop(study, short, "robust")
+    with pytest.raises(InputError) as fast:
+        fit_study(study, short)
+    assert str(fast.value) == str(loop.value)
+    assert "2 point(s) are too few for a line" in str(fast.value)
+
+
+def test_the_trace_is_persisted_and_a_broken_file_is_traced_again(tmp_path, monkeypatch):
+    pytest.importorskip("flatbuffers")  # jax.export's serialisation needs it
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.delenv("PIECS_BAYES_NO_CACHE", raising=False)
+    calls = []
+
+    def build():
+        import jax
+        import jax.numpy as jnp
+
+        calls.append(1)
+        meta = {"n": 0}
+
+        def f(x):
+            meta["n"] = int(x.shape[0])
+            return jnp.cumsum(x) * 2.0
+
+        return jax.jit(f), (jax.ShapeDtypeStruct((3,), float),), meta
+
+    key = ("test", 3)
+    f1, m1 = _config.persisted("unit_test", key, build, packages=("fit",))
+    files = list((tmp_path / "piecs_bayes" / "export").glob("unit_test-*.bin"))
+    assert len(files) == 1 and m1 == {"n": 3} and len(calls) == 1
+    np.testing.assert_array_equal(f1(np.arange(3.0)), [0.0, 2.0, 6.0])
+    f2, m2 = _config.persisted("unit_test", key, build, packages=("fit",))  # read back
+    assert len(calls) == 1 and m2 == {"n": 3}
+    np.testing.assert_array_equal(f2(np.arange(3.0)), [0.0, 2.0, 6.0])
+    files[0].write_bytes(b"\x05\x00\x00\x00\x00\x00\x00\x00{bad}garbage")  # broken: traced again
+    f3, m3 = _config.persisted("unit_test", key, build, packages=("fit",))
+    assert len(calls) == 2 and m3 == {"n": 3}
+    np.testing.assert_array_equal(f3(np.arange(3.0)), [0.0, 2.0, 6.0])
+    _config.persisted("unit_test", ("test", 4), build, packages=("fit",))  # another key
+    assert len(calls) == 3
+    monkeypatch.setenv("PIECS_BAYES_NO_CACHE", "1")  # nothing read or written
+    _config.persisted("unit_test", ("test", 5), build, packages=("fit",))
+    assert len(calls) == 4 and len(list(files[0].parent.glob("unit_test-*.bin"))) == 2
+
+
+def test_unknown_solver_is_refused():
+    study = load_study(DEMO)
+    probe = load_probe_data(study)
+    with pytest.raises(InputError, match="unknown solver 'newton'"):
+        fit_profile(study.profile, probe.feature, probe.points, ball_radius=1.0, solver="newton")

@@ -1,0 +1,66 @@
+"""`piecs-bayes simulate batch`: the shipped run is reproduced byte for byte, and
+`--points` / `--parts` make dense and long runs anyone can regenerate."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from piecs_bayes.cli import main
+from piecs_bayes.io import load_study
+from piecs_bayes.jobs import load_probe_data
+from piecs_bayes.jobs.simulate import DEMO_POINTS, write_batch
+
+BATCH = Path(__file__).resolve().parents[2] / "data" / "batch"
+
+
+def test_the_default_run_is_the_shipped_data(tmp_path):
+    write_batch(tmp_path)
+    shipped = sorted(p.name for p in BATCH.iterdir() if p.is_file())
+    assert sorted(p.name for p in tmp_path.iterdir()) == shipped
+    for name in shipped:
+        assert (tmp_path / name).read_bytes() == (BATCH / name).read_bytes(), name
+
+
+def test_dense_long_run_points_names_and_tool_changes(tmp_path):
+    truths = write_batch(tmp_path, n_parts=45, points=16)
+    study = load_study(tmp_path / "study.toml")
+    probe = load_probe_data(study)
+    assert probe.parts[0] == "part01" and probe.parts[-1] == "part45"
+    assert len(probe.feature) == 45 * 7 * 16
+    per_part = {p: int(np.sum(probe.part == p)) for p in probe.parts}
+    assert set(per_part.values()) == {7 * 16}
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    assert truth["points_per_feature"] == 16
+    # every insert lasts tool_change_at - 1 = 20 parts
+    assert truth["tool_change_parts"] == ["part21", "part41"]
+    assert [t["part"] for t in truths if t["tool_change"]] == ["part21", "part41"]
+    wear = [t["process_errors"]["wear_start"] for t in truths]
+    assert wear[20] == wear[40] == 0.0 and wear[19] > 0 and wear[44] == wear[24]
+
+
+def test_names_sort_in_production_order_beyond_99_parts(tmp_path):
+    write_batch(tmp_path, n_parts=101, points=3)
+    names = sorted(p.stem for p in tmp_path.glob("part*.csv"))
+    assert names[0] == "part001" and names[-1] == "part101" and len(names) == 101
+
+
+def test_default_points_are_the_demo_parts(tmp_path):
+    write_batch(tmp_path, n_parts=1)
+    rows = (tmp_path / "part01.csv").read_text().splitlines()[2:]
+    assert len(rows) == sum(DEMO_POINTS.values())
+
+
+@pytest.mark.parametrize("points", ["2", "0", "x"])
+def test_cli_refuses_too_few_points(tmp_path, capsys, points):
+    argv = ["simulate", "batch", "--parts", "2", "--points", points, "--out", str(tmp_path)]
+    try:
+        rc = main(argv)
+    except SystemExit as exc:  # argparse's own check (not an integer >= 1)
+        rc = exc.code
+    assert rc == 2
+    assert "points" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
