@@ -39,10 +39,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, special
 
+from .. import _config
 from ._conformance import Conformance, conformance
 from ._settings import DecisionSettings
+
+optimize = _config.LazyModule("scipy.optimize")
+special = _config.LazyModule("scipy.special")
 
 __all__ = ["ActionLoss"]
 

@@ -14,7 +14,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from scipy import special
+from .. import _config
+
+special = _config.LazyModule("scipy.special")
+
 
 __all__ = ["Conformance", "conformance"]
 

@@ -42,13 +42,15 @@ import numbers
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import special
 
+from .. import _config
 from ..errors import InputError
 from ._actions import ActionLoss, _evaluate
 from ._conformance import Conformance
 from ._settings import DecisionSettings
 from ._verdict import Verdict, _Words, clear_verdict, conclude
+
+special = _config.LazyModule("scipy.special")
 
 __all__ = ["Decision", "decide"]
 

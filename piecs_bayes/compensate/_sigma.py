@@ -18,9 +18,12 @@ from functools import lru_cache
 from typing import Literal
 
 import numpy as np
-from scipy import integrate, special
 
+from .. import _config
 from ..errors import InputError
+
+integrate = _config.LazyModule("scipy.integrate")
+special = _config.LazyModule("scipy.special")
 
 __all__ = ["SigmaEstimate", "c4_constant", "d2_constant", "sigma_within"]
 

@@ -62,10 +62,13 @@ import math
 from dataclasses import dataclass, fields
 
 import numpy as np
-from scipy import optimize, special
 
+from .. import _config
 from ..errors import InputError
 from ._tracking_filter import mixture_filter, smoother
+
+optimize = _config.LazyModule("scipy.optimize")
+special = _config.LazyModule("scipy.special")
 
 __all__ = [
     "GRID_LOG_PRIOR",

@@ -28,11 +28,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import special
 
+from .. import _config
 from ._actions import _p_out
 from ._decision import _scales
 from ._settings import DecisionSettings
+
+special = _config.LazyModule("scipy.special")
 
 __all__: list[str] = []
 

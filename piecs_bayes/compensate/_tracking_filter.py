@@ -28,7 +28,10 @@ contributes no likelihood (the diffuse likelihood of Durbin & Koopman, 2012, §5
 from __future__ import annotations
 
 import numpy as np
-from scipy import special
+
+from .. import _config
+
+special = _config.LazyModule("scipy.special")
 
 __all__: list[str] = []
 

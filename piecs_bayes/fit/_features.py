@@ -45,13 +45,19 @@ __all__ = [
 def geometry_args(feature: Feature):
     """Nominal geometry of a feature as arrays (data, not static structure), so one
     compiled model serves every feature of a kind."""
+    # NumPy from the drawing's numbers (the values of `feature.midpoint`, `.normal`):
+    # no eager JAX operation when a study is fitted
     if feature.kind == "line":
-        return (feature.midpoint, feature.normal, jnp.asarray(0.0), jnp.asarray(1.0))
+        p0, p1 = np.asarray(feature.p0, dtype=float), np.asarray(feature.p1, dtype=float)
+        d = p1 - p0
+        d = d / np.sqrt(np.sum(d**2))
+        normal = feature.side * np.array([d[1], -d[0]])  # left_normal, outward side
+        return ((p0 + p1) / 2, normal, np.asarray(0.0), np.asarray(1.0))
     return (
-        jnp.asarray(feature.center),
-        jnp.zeros(2),
-        jnp.asarray(feature.radius),
-        jnp.asarray(float(feature.sense)),
+        np.asarray(feature.center, dtype=float),
+        np.zeros(2),
+        np.asarray(float(feature.radius)),
+        np.asarray(float(feature.sense)),
     )
 
 

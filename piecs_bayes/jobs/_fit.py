@@ -7,8 +7,6 @@ The probe data are read once (`load_probe_data`) and passed down.
 
 from __future__ import annotations
 
-import dataclasses
-import functools
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -160,21 +158,12 @@ def fit_study(
     )
 
 
-@functools.cache
-def _machine_to_part():
-    import jax
-
+def _part_frame(transform: MachineTransform, points) -> np.ndarray:
+    """`fit.to_part_frame` of concrete points: `geometry.machine_to_part`'s NumPy path
+    (no JAX dispatch; the same numbers to ~1e-14 mm)."""
     from ..geometry import machine_to_part
 
-    return jax.jit(machine_to_part)
-
-
-def _part_frame(transform: MachineTransform, points) -> np.ndarray:
-    """`fit.to_part_frame` compiled (one call instead of ~12 eager operations, ~0.45 ms);
-    the same numbers (bit for bit without scale errors and rotation, else to 1e-14 mm)."""
-    t = dataclasses.astuple(transform) if isinstance(transform, MachineTransform) else transform
-    params = np.asarray(t, dtype=float)  # (x_centre, z_offset, scale_x, scale_z, rotation)
-    return np.asarray(_machine_to_part()(np.asarray(points, dtype=float), params))
+    return np.asarray(machine_to_part(np.asarray(points, dtype=float), transform))
 
 
 def compensate_study(study: Study, fit: ProfileFit, *, gain=None) -> AdjustedPath:
