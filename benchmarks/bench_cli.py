@@ -38,28 +38,10 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _fmt import load, ms, table  # noqa: E402
+
 DEMO = ROOT / "data" / "demo" / "study.toml"
 CLI = [sys.executable, "-m", "piecs_bayes.cli"]
-
-
-def _table(rows, head):
-    widths = [max(len(str(r[i])) for r in [head, *rows]) for i in range(len(head))]
-    line = "| " + " | ".join(str(h).ljust(w) for h, w in zip(head, widths, strict=True)) + " |"
-    out = [line, "|" + "|".join("-" * (w + 2) for w in widths) + "|"]
-    for r in rows:
-        out.append(
-            "| " + " | ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)) + " |"
-        )
-    return "\n".join(out)
-
-
-def _ms(t: float) -> str:
-    return f"{t * 1e3:.2f} ms" if t < 1 else f"{t:.2f} s"
-
-
-def _load() -> str:
-    one, five, fifteen = os.getloadavg()
-    return f"load average {one:.2f} / {five:.2f} / {fifteen:.2f} (1/5/15 min)"
 
 
 def section_a(args) -> dict:
@@ -70,7 +52,7 @@ def section_a(args) -> dict:
     from piecs_bayes.io import load_study
     from piecs_bayes.jobs import fit_options, fit_study, load_probe_data, robust_scale
 
-    print(f"\n## (a) One robust part fit vs scipy.optimize.least_squares\n\n{_load()}\n")
+    print(f"\n## (a) One robust part fit vs scipy.optimize.least_squares\n\n{load()}\n")
     study = load_study(DEMO)
     probe = load_probe_data(study)
     centres = to_part_frame(study.transform, probe.points)
@@ -108,8 +90,8 @@ def section_a(args) -> dict:
     rows = []
     for name, ts in times.items():
         lo, med = min(ts), statistics.median(ts)
-        rows.append([name, _ms(lo), _ms(med), f"{t_min_sp / lo:.2f}x", f"{t_med_sp / med:.2f}x"])
-    print(_table(rows, ["per part (7 features, 54 points)", "min", "median", "speed (min)",
+        rows.append([name, ms(lo), ms(med), f"{t_min_sp / lo:.2f}x", f"{t_med_sp / med:.2f}x"])
+    print(table(rows, ["per part (7 features, 54 points)", "min", "median", "speed (min)",
                         "speed (median)"]))  # fmt: skip
     fit = fit_study(study, probe)
     loop = fit_profile(study.profile, probe.feature, centres, **opts, lines=probe.lines)
@@ -140,7 +122,7 @@ def _import_time(module: str) -> float:
 
 
 def section_b(args) -> dict:
-    print(f"\n## (b) The command line, warm\n\n{_load()}\n")
+    print(f"\n## (b) The command line, warm\n\n{load()}\n")
     with tempfile.TemporaryDirectory() as tmp:
         fit_cmd = [*CLI, "fit", str(DEMO), "--out", tmp, "--quiet"]
         t_first = _wall(fit_cmd)  # fills the caches if they are empty
@@ -149,15 +131,15 @@ def section_b(args) -> dict:
     imports = {m: min(_import_time(m) for _ in range(args.repeat))
                for m in ("piecs_bayes.cli", "piecs_bayes.jobs")}  # fmt: skip
     rows = [
-        ["piecs-bayes --help", _ms(min(help_t)), _ms(statistics.median(help_t))],
+        ["piecs-bayes --help", ms(min(help_t)), ms(statistics.median(help_t))],
         [
             "piecs-bayes fit data/demo/study.toml (warm)",
-            _ms(min(fit_t)),
-            _ms(statistics.median(fit_t)),
+            ms(min(fit_t)),
+            ms(statistics.median(fit_t)),
         ],  # fmt: skip
-        *[[f"import {m}", _ms(t), ""] for m, t in imports.items()],
+        *[[f"import {m}", ms(t), ""] for m, t in imports.items()],
     ]
-    print(_table(rows, ["command", f"min of {args.repeat}", "median"]))
+    print(table(rows, ["command", f"min of {args.repeat}", "median"]))
     print(f"\nFirst `fit` of this run (caches as found): {t_first:.2f} s.")
     return {"help": help_t, "fit": fit_t, "imports": imports}
 

@@ -49,6 +49,7 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import load, machine_line, simulate_fleet, timeit  # noqa: E402
+from _fmt import ms, table  # noqa: E402
 
 import piecs_bayes  # noqa: E402,F401
 from piecs_bayes.fit import fit_profiles, to_part_frame  # noqa: E402
@@ -116,21 +117,6 @@ def scipy_part(profile, features, centres, rb, scale, *, jac=True):
     }
 
 
-def _table(rows, head):
-    widths = [max(len(str(r[i])) for r in [head, *rows]) for i in range(len(head))]
-    line = "| " + " | ".join(str(h).ljust(w) for h, w in zip(head, widths, strict=True)) + " |"
-    out = [line, "|" + "|".join("-" * (w + 2) for w in widths) + "|"]
-    for r in rows:
-        out.append(
-            "| " + " | ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)) + " |"
-        )
-    return "\n".join(out)
-
-
-def _ms(t):
-    return f"{t * 1e3:.2f} ms" if t < 1 else f"{t:.2f} s"
-
-
 # --------------------------------------------------------------------------- (a)
 
 
@@ -169,8 +155,8 @@ def section_a(args):
         ["piecs_bayes fit_study / fit_profile (per-feature API)", t_loop],
         ["piecs_bayes fit_profiles, one part (batch_size=8)", t_batch],
     ]
-    rows = [[label, _ms(t), f"{t_sp / t:.2f}x"] for label, t in rows]
-    print(_table(rows, ["per part (7 features, 54 points)", "time", "speed vs scipy"]))
+    rows = [[label, ms(t), f"{t_sp / t:.2f}x"] for label, t in rows]
+    print(table(rows, ["per part (7 features, 54 points)", "time", "speed vs scipy"]))
     print(
         f"\nFirst call (compilation, persistent cache as found): fit_study {t_compile_loop:.1f} s, "
         f"fit_profiles {t_compile_batch:.1f} s. Results: |piecs_bayes - scipy| <= {d_abs:.1e} "
@@ -284,13 +270,13 @@ def section_b(args):
     sp_total = t_sp * n
     rows = [
         [f"scipy loop (timed on {args.scipy_sample} parts, x{n / args.scipy_sample:g})",
-         _ms(sp_total), _ms(t_sp), "1.0x"],
-        ["fit_profiles, solver='auto' (batch kernel, LM retries)", _ms(res["t_fit"]),
-         _ms(res["t_fit"] / n), f"{sp_total / res['t_fit']:.1f}x"],
-        [f"fit_profiles, solver='lm' (timed on {res['lm_n']} parts, scaled)", _ms(res["t_lm"]),
-         _ms(res["t_lm"] / n), f"{sp_total / res['t_lm']:.1f}x"],
-        ["+ characteristics of all features (capability values)", _ms(res["t_char"]),
-         _ms(res["t_char"] / n), ""],
+         ms(sp_total), ms(t_sp), "1.0x"],
+        ["fit_profiles, solver='auto' (batch kernel, LM retries)", ms(res["t_fit"]),
+         ms(res["t_fit"] / n), f"{sp_total / res['t_fit']:.1f}x"],
+        [f"fit_profiles, solver='lm' (timed on {res['lm_n']} parts, scaled)", ms(res["t_lm"]),
+         ms(res["t_lm"] / n), f"{sp_total / res['t_lm']:.1f}x"],
+        ["+ characteristics of all features (capability values)", ms(res["t_char"]),
+         ms(res["t_char"] / n), ""],
     ]  # fmt: skip
     out_s = subprocess.run(
         [sys.executable, __file__, "--child-b-stream", str(n)], capture_output=True, text=True
@@ -300,10 +286,10 @@ def section_b(args):
         raise SystemExit("(b) streamed child failed")
     res_s = json.loads(out_s.stdout.strip().splitlines()[-1])
     rows.append([f"streamed: made and fitted {res_s['chunk']} parts at a time, values kept "
-                 f"(peak RSS {res_s['rss_mb']:.0f} MiB)", _ms(res_s["t_fit"]),
-                 _ms(res_s["t_fit"] / n), f"{sp_total / res_s['t_fit']:.1f}x"])  # fmt: skip
+                 f"(peak RSS {res_s['rss_mb']:.0f} MiB)", ms(res_s["t_fit"]),
+                 ms(res_s["t_fit"] / n), f"{sp_total / res_s['t_fit']:.1f}x"])  # fmt: skip
     res["stream"] = res_s
-    print(_table(rows, [f"{n} parts x 7 features, robust", "total", "per part", "speed"]))
+    print(table(rows, [f"{n} parts x 7 features, robust", "total", "per part", "speed"]))
     print(
         f"\nCompilation (first run minus second, cache as found): {res['t_compile']:.1f} s, "
         f"not included. {res['failures']} fits failed (reported by status); "
@@ -478,7 +464,7 @@ def section_cd(args):
                      f"{wall:.1f} s", f"{tau:.0f}", f"{ess:.0f}", f"{rate:.0f}",
                      f"{rate / base:.1f}x"])  # fmt: skip
     print(
-        _table(
+        table(
             rows,
             [
                 f"sampler (d={d}, {nw} walkers, {nsteps} steps, DE moves)",
@@ -540,7 +526,7 @@ def section_d(args, log_prob, pargs, x0, cov, base):
          f"{ess / t_second:.0f}", f"{ess / t_second / base:.1f}x"],
     ]  # fmt: skip
     print(
-        _table(
+        table(
             rows, [f"numpyro {numpyro.__version__}", "wall", "min ESS", "ESS/s", "vs emcee+NumPy"]
         )
     )
@@ -596,7 +582,7 @@ def section_e(args):
         ["warm (median of 3)", f"{sorted(warm)[1]:.2f} s", f"{cold / sorted(warm)[1]:.1f}x"],
         ["no persistent cache (PIECS_BAYES_NO_CACHE=1)", f"{none:.2f} s", f"{cold / none:.1f}x"],
     ]
-    print(_table(rows, ["wall time, whole process", "time", "vs cold"]))
+    print(table(rows, ["wall time, whole process", "time", "vs cold"]))
     imp = {m: _import_time(m) for m in ("piecs_bayes.cli", "piecs_bayes.jobs", "jax")}
     print(
         f"\nCache: {n_files} entries, {size / 1e6:.1f} MB; the warm runs wrote {stable}. "
@@ -614,7 +600,7 @@ def section_f(args):
     print(f"\n## (f) How the batch fit's cost grows\n\n{load()}\n")
     kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
     n_ref = 256 if args.quick else 1024
-    by_points = _points_table(args, kw)
+    by_points = _pointstable(args, kw)
     sizes = (10, 100, 1000) if args.quick else (10, 100, 1000, 10000)
     fleet = simulate_fleet(max(sizes), seed=3)
     c = to_part_frame(DEMO_TRANSFORM, fleet["points"])
@@ -634,8 +620,8 @@ def section_f(args):
 
         t_sp = timeit(scipy_loop, repeat=1) * n / len(sample)
         by_parts.append((n, t, t_sp))
-    rows = [[n, _ms(t), _ms(t / n), _ms(ts), f"{ts / t:.1f}x"] for n, t, ts in by_parts]
-    print(_table(rows, ["parts (demo points)", "fit_profiles", "per part", "scipy loop", "speed"]))
+    rows = [[n, ms(t), ms(t / n), ms(ts), f"{ts / t:.1f}x"] for n, t, ts in by_parts]
+    print(table(rows, ["parts (demo points)", "fit_profiles", "per part", "scipy loop", "speed"]))
     slope_p = np.polyfit(np.log([r[0] for r in by_points]), np.log([r[1] for r in by_points]), 1)[0]
     slope_n = np.polyfit(np.log([r[0] for r in by_parts]), np.log([r[1] for r in by_parts]), 1)[0]
     print(
@@ -645,7 +631,7 @@ def section_f(args):
     _plot(args.plot, by_points, by_parts, n_ref)
 
 
-def _points_table(args, kw):
+def _pointstable(args, kw):
     """Cost per fit against points per feature (every demo feature probed with k
     points; ~2^18 points per k, at least 16 parts), side by side with the SciPy
     loop on a few of the same parts: `[(k, seconds per fit)]`."""
@@ -673,11 +659,11 @@ def _points_table(args, kw):
         rows.append((k, n_parts, t, t_sp, first - t * n_parts * 7, lm, fit.ok.mean()))
     t32 = dict(out)[32] / 32
     table = [
-        [k, n, _ms(t), f"{t / k * 1e6:.3f} us", f"{t / k / t32:.2f}", _ms(ts),
+        [k, n, ms(t), f"{t / k * 1e6:.3f} us", f"{t / k / t32:.2f}", ms(ts),
          f"{ts / k * 1e6:.2f} us", f"{ts / t:.0f}x", f"{comp:.1f} s", lm, f"{ok:.0%}"]
         for k, n, t, ts, comp, lm, ok in rows
     ]  # fmt: skip
-    print(_table(table, ["points per feature", "parts", "per fit", "per point",
+    print(table(table, ["points per feature", "parts", "per fit", "per point",
                          "per point / at 32", "scipy per fit", "scipy per point", "speed",
                          "compile (bucket)", "fits with >= 100 steps", "ok"]))  # fmt: skip
     slope = np.polyfit(np.log([k for k, _ in out[1:]]), np.log([t for _, t in out[1:]]), 1)[0]
