@@ -31,8 +31,7 @@ from ..errors import AnalysisError, InputError
 from . import _robust
 from ._lsq_core import is_linear, solve_arrays
 from ._lsq_result import LsqResult, param_names, result_from_arrays
-from ._lsq_solver import SOLVERS
-from ._lsq_types import Status
+from ._lsq_types import SOLVERS, Status
 
 __all__ = ["least_squares", "ravel"]
 

@@ -32,12 +32,10 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 from . import _robust
-from ._lsq_solver import SOLVERS, make_solver, status_code
 from ._lsq_statistics import analyse, statistics
-from ._lsq_types import LsqArrays
+from ._lsq_types import SOLVERS, LsqArrays
 
 __all__ = ["POLISH_STEPS", "SCALE_ROUNDS", "is_linear", "solve_arrays", "stages"]
 
@@ -169,6 +167,9 @@ def _solve_core(
     w = jnp.ones(n) if weights is None else jnp.asarray(weights, dtype=float)
     mask = w > 0
     wsqrt = jnp.sqrt(jnp.where(mask, w, 0.0))
+    # optimistix on first use: the batch kernel (the CLI's fit) never needs it
+    from ._lsq_solver import make_solver
+
     solver = make_solver(solver_name, rtol, atol)
 
     def weighted(y, a):
@@ -217,6 +218,10 @@ def _staged_solve(weighted, xs, y0, args, stage_ids, stage_cs, scale, mask, cust
         return e * jnp.sqrt(ratio)
 
     def solve(z_start, s, idx):
+        import optimistix as optx
+
+        from ._lsq_solver import status_code
+
         sol = optx.least_squares(
             wrapped, solver, z_start, (args, s, idx), max_steps=max_steps, throw=False
         )

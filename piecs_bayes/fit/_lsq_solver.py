@@ -18,11 +18,9 @@ import jax
 import jax.numpy as jnp
 import optimistix as optx
 
-from ._lsq_types import Status
+from ._lsq_types import SOLVERS, Status
 
 __all__ = ["SOLVERS", "SafeTrustRegion", "TrustRegionSolver", "make_solver", "status_code"]
-
-SOLVERS = ("lm", "gauss_newton", "dogleg")
 
 #: optimistix's outcome -> ours; any other member (a failed linear solve:
 #: breakdown, stagnation, conlim, max_steps_reached of an iterative linear

@@ -10,7 +10,10 @@ from typing import NamedTuple
 
 import jax
 
-__all__ = ["COV_REASONS", "LsqArrays", "Status"]
+__all__ = ["SOLVERS", "COV_REASONS", "LsqArrays", "Status"]
+
+#: the engine's solvers (optimistix; `_lsq_solver`)
+SOLVERS = ("lm", "gauss_newton", "dogleg")
 
 
 class Status(enum.IntEnum):
