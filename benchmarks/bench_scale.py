@@ -658,12 +658,12 @@ def _pointstable(args, kw):
         out.append((k, t))
         rows.append((k, n_parts, t, t_sp, first - t * n_parts * 7, lm, fit.ok.mean()))
     t32 = dict(out)[32] / 32
-    table = [
+    cells = [
         [k, n, ms(t), f"{t / k * 1e6:.3f} us", f"{t / k / t32:.2f}", ms(ts),
          f"{ts / k * 1e6:.2f} us", f"{ts / t:.0f}x", f"{comp:.1f} s", lm, f"{ok:.0%}"]
         for k, n, t, ts, comp, lm, ok in rows
     ]  # fmt: skip
-    print(table(table, ["points per feature", "parts", "per fit", "per point",
+    print(table(cells, ["points per feature", "parts", "per fit", "per point",
                          "per point / at 32", "scipy per fit", "scipy per point", "speed",
                          "compile (bucket)", "fits with >= 100 steps", "ok"]))  # fmt: skip
     slope = np.polyfit(np.log([k for k, _ in out[1:]]), np.log([t for _, t in out[1:]]), 1)[0]
