@@ -4,7 +4,9 @@ an exit code)."""
 from __future__ import annotations
 
 import argparse
+import gc
 import os
+import signal
 import sys
 
 from ..errors import AnalysisError, InputError
@@ -38,8 +40,34 @@ class Terminated(BaseException):
     """SIGTERM, raised where the program is, so that temporaries are removed."""
 
 
+def _swallowed_at(frame) -> bool:
+    """Whether an exception raised at `frame` would be printed and ignored: code run by
+    the garbage collector (a `gc.callbacks` entry, such as JAX's, or a `__del__`)."""
+    codes = {getattr(cb, "__code__", None) for cb in gc.callbacks}
+    while frame is not None:
+        if frame.f_code in codes or frame.f_code.co_name == "__del__":
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _stop(exc_type, frame):
+    """Raise `exc_type` where the program is, or, when that code would swallow it (a
+    signal handled inside a GC callback after a long compiled call: the sampler's
+    loop), 50 ms later from a SIGALRM, so that the job still stops and unwinds."""
+    if _swallowed_at(frame):
+        signal.signal(signal.SIGALRM, lambda s, f: _stop(exc_type, f))
+        signal.setitimer(signal.ITIMER_REAL, 0.05)
+        return
+    raise exc_type()
+
+
 def _on_sigterm(signum, frame):
-    raise Terminated()
+    _stop(Terminated, frame)
+
+
+def _on_sigint(signum, frame):
+    _stop(KeyboardInterrupt, frame)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
@@ -69,7 +97,6 @@ def main(argv=None) -> int:
     """Run one command; every failure is one line on stderr and an exit code:
     0 ok, 1 the analysis failed, 2 bad input or usage (argparse), 130 interrupted
     (Ctrl-C), 143 terminated (SIGTERM). ``--debug`` shows the traceback instead."""
-    import signal
     import traceback
     import warnings
 
@@ -81,6 +108,8 @@ def main(argv=None) -> int:
     previous = None
     try:
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, _on_sigint)  # Ctrl-C as before, never swallowed
     except ValueError:  # not the main thread (e.g. called from a worker): leave it
         previous = None
     try:
@@ -130,3 +159,5 @@ def main(argv=None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+            if signal.getsignal(signal.SIGINT) is _on_sigint:
+                signal.signal(signal.SIGINT, signal.default_int_handler)

@@ -209,8 +209,10 @@ def _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, 
             n = min(burn - done, _BLOCK * thin)
             carry = advance(carry, n, 0, args)[0]
             done += n
+            # wait for each block (not only for the bar): no queue of dispatched
+            # blocks outlives a Ctrl-C or SIGTERM raised between them
+            jax.block_until_ready(carry)
             if bar is not None:
-                jax.block_until_ready(carry)
                 bar.update(done - bar.n)
         chains, lps = [], []
         for lo in range(0, n_keep, _BLOCK):
