@@ -59,6 +59,10 @@ _MASKS = (
 )
 
 
+#: the PDF's page footer ("piecs_bayes report · <study> · part <id> · <time> page 3 of 13")
+_FOOTER = re.compile(r"^piecs_bayes report · .*page \d+ of \d+\s*$", re.M)
+
+
 def _run(argv: list[str], shown: str) -> None:
     """Run the CLI in this process as ``piecs-bayes ARGV``. The report records the
     command line: it is given as ``shown`` (the command a user types, e.g. `make
@@ -134,7 +138,10 @@ def digests(folder: Path) -> dict:
     if (folder / "report.pdf").exists():
         # whitespace collapsed: how the PDF wraps a line and pads a column follows the
         # widths of the masked numbers (a 100 s step widens the wall-time table)
-        text = " ".join(masked(_pdf_text(folder / "report.pdf")).split())
+        # and without the page footers: where a page breaks follows those widths too
+        # (a paragraph one line longer moves a table to the next page), not the content
+        text = _FOOTER.sub("", masked(_pdf_text(folder / "report.pdf")))
+        text = " ".join(text.split())
         out["report.pdf (text)"] = _sha(text.encode())
     return out
 
