@@ -307,5 +307,6 @@ def _check_point_count(feature: Feature, n: int, n_free: int) -> None:
 
 
 def to_part_frame(study_transform, machine_points):
-    """Ball centres in the part frame from machine coordinates (radius X)."""
-    return np.asarray(machine_to_part(jnp.asarray(machine_points), study_transform))
+    """Ball centres in the part frame from machine coordinates (radius X); concrete
+    points take `geometry.machine_to_part`'s NumPy path (no JAX dispatch)."""
+    return np.asarray(machine_to_part(np.asarray(machine_points, dtype=float), study_transform))

@@ -13,8 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import InputError
-from ..fit import ProfileFit, fit_profile, fit_profile_joint, pooled_residuals
-from ..geometry import MachineTransform
+from ..fit import ProfileFit, fit_profile, fit_profile_joint, pooled_residuals, to_part_frame
 from ..io import ProbeData, Study, check_probe_data, read_bytes, read_probe_csv
 from ._options import bayes_options, fit_options, robust_scale
 
@@ -149,21 +148,13 @@ def fit_study(
     return fit_profile(
         study.profile,
         data.feature,
-        _part_frame(study.transform, data.points),
+        to_part_frame(study.transform, data.points),
         **fit_options(study, method),
         lines=data.lines,
         file=data.file,
         part=part,
         solver=solver,
     )
-
-
-def _part_frame(transform: MachineTransform, points) -> np.ndarray:
-    """`fit.to_part_frame` of concrete points: `geometry.machine_to_part`'s NumPy path
-    (no JAX dispatch; the same numbers to ~1e-14 mm)."""
-    from ..geometry import machine_to_part
-
-    return np.asarray(machine_to_part(np.asarray(points, dtype=float), transform))
 
 
 def compensate_study(study: Study, fit: ProfileFit, *, gain=None) -> AdjustedPath:
