@@ -19,7 +19,10 @@ machine slows both sides alike):
   emcee with a NumPy log posterior of the same posterior (checked equal), in
   effective samples per second; the lockstep ensembles of `sample_posteriors` for
   1 and 16 parts;
-- (d) NumPyro NUTS on the same posterior (skipped when numpyro is missing);
+- (d) NumPyro NUTS (the `bench` extra) on the same posterior, every sampler side by
+  side (compilation, warm-up and sampling timed apart, one ESS estimator) and
+  checked to sample the same posterior (skipped when numpyro is missing); (c) and
+  (d) live in `_bench_sampling.py`;
 - (e) `piecs-bayes fit data/demo/study.toml`: cold (empty cache), warm (persistent
   compilation cache), without the cache; import times;
 - (f) cost against points per feature (8 to 4,096, per fit and per point, beside the
@@ -31,7 +34,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import resource
 import subprocess
@@ -45,19 +47,17 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from _bench_sampling import DEMO, section_cd  # noqa: E402
 from _common import load, machine_line, simulate_fleet, timeit  # noqa: E402
 from _fmt import ms, table  # noqa: E402
 
 import piecs_bayes  # noqa: E402,F401
 from piecs_bayes.fit import fit_profiles, to_part_frame  # noqa: E402
 from piecs_bayes.io import load_study  # noqa: E402
-from piecs_bayes.jobs import fit_study, inliers, load_probe_data, robust_scale  # noqa: E402
+from piecs_bayes.jobs import fit_study, load_probe_data, robust_scale  # noqa: E402
 from piecs_bayes.jobs.simulate import DEMO_TRANSFORM  # noqa: E402
 
-DEMO = ROOT / "data" / "demo" / "study.toml"
 TOL = 1e-10
 
 
@@ -301,237 +301,6 @@ def section_b(args):
         f"fits: Python, JAX, the simulated data). {load()} (end)"
     )
     return res
-
-
-# --------------------------------------------------------------------------- (c), (d)
-
-
-def _posterior():
-    """The demo part's profile posterior (bayes_study's model), JAX and NumPy forms."""
-    from piecs_bayes.fit import profile_log_posterior
-
-    study = load_study(DEMO)
-    probe = load_probe_data(study)
-    fit = fit_study(study, probe)
-    use = inliers(fit, probe)
-    log_prob, lay, priors = profile_log_posterior(
-        study.profile, use.feature, sources=dict(study.sources),
-        ball_radius=study.probe.ball_radius, transform=study.transform,
-        sigma=study.probe.repeatability, with_approach=use.approach is not None,
-    )  # fmt: skip
-    args = (jnp.asarray(use.points), None if use.approach is None else jnp.asarray(use.approach))
-    x0 = np.zeros(len(lay.names))
-    for f, sl in lay.features:
-        x0[sl] = fit.deviations[f.id]
-    for name, k in lay.nuisance:
-        x0[k] = priors[name].mean
-    x0[lay.sigma_index] = study.probe.repeatability
-
-    # nominal geometry as plain NumPy, computed once (Feature properties are JAX)
-    feats = []
-    for f, sl in lay.features:
-        idx = np.flatnonzero(use.feature == f.id)
-        if f.kind == "line":
-            geo = (np.asarray(f.normal, dtype=float), np.asarray(f.midpoint, dtype=float))
-        else:
-            geo = (np.asarray(f.center, dtype=float), float(f.radius), float(f.sense))
-        feats.append((f.kind, sl, idx, geo))
-    base = np.asarray(study.transform.as_array())
-    pts = np.asarray(use.points)
-    tindex = {"x_centre": 0, "z_offset": 1, "scale_x": 2, "scale_z": 3, "rotation": 4}
-    npri = []
-    for name, k in lay.nuisance:
-        p = priors[name]
-        if type(p).__name__ != "Normal":
-            raise SystemExit(f"the NumPy posterior handles normal priors only, not {p!r}")
-        npri.append((name, k, float(p.mu), float(p.sigma)))
-    sig_sd = float(priors["repeatability"].sigma)
-    log2pi = math.log(2 * math.pi)
-
-    def np_log_prob(th):
-        """The same posterior in NumPy (per walker, as a user writes it for emcee)."""
-        t = base.copy()
-        rb = study.probe.ball_radius
-        lp = 0.0
-        for name, k, mu, sd in npri:
-            v = th[k]
-            lp += -0.5 * ((v - mu) / sd) ** 2 - math.log(sd) - 0.5 * log2pi
-            if name in tindex:
-                t[tindex[name]] += v
-            elif name == "ball_radius":
-                rb = rb + v
-        s = th[lay.sigma_index]
-        if s < 0:
-            return -np.inf
-        lp += -0.5 * (s / sig_sd) ** 2 - math.log(sig_sd) + math.log(2.0) - 0.5 * log2pi
-        u = (pts - t[:2]) * (1.0 + t[2:4])
-        c, sn = math.cos(t[4]), math.sin(t[4])
-        part = np.column_stack([c * u[:, 0] + sn * u[:, 1], -sn * u[:, 0] + c * u[:, 1]])
-        ss, n = 0.0, 0
-        for kind, sl, idx, geo in feats:
-            p, d = part[idx], th[sl]
-            if kind == "line":
-                nrm, mid = geo
-                cc, s2 = math.cos(d[1]), math.sin(d[1])
-                rn = np.array([cc * nrm[0] + s2 * nrm[1], -s2 * nrm[0] + cc * nrm[1]])
-                r = (p - mid - d[0] * nrm) @ rn - rb
-            else:
-                cen, rad, sense = geo
-                v = p - cen - d[:2]
-                r = sense * (np.sqrt(np.sum(v * v, axis=1)) - (rad + d[2])) - rb
-            ss += float(r @ r)
-            n += len(r)
-        return lp - 0.5 * ss / s**2 - n * math.log(s) - 0.5 * n * log2pi
-
-    return log_prob, args, x0, lay.names, np_log_prob
-
-
-def _emcee_ess(sampler, burn):
-    import emcee
-
-    chain = sampler.get_chain(discard=burn)
-    tau = emcee.autocorr.integrated_time(chain, c=5, tol=0, quiet=True)
-    s, w, _ = chain.shape
-    return float(np.min(s * w / tau)), float(np.max(tau)), s
-
-
-def section_cd(args):
-    import emcee
-
-    print(f"\n## (c) emcee: JAX vs NumPy log posterior; lockstep ensembles\n\n{load()}\n")
-    log_prob, pargs, x0, names, np_lp = _posterior()
-    d = len(x0)
-    from piecs_bayes.fit._bayes import _vectorised
-    from piecs_bayes.fit._bayes_core import _neg_hessian, _sqrt_psd
-
-    h = np.asarray(_neg_hessian(log_prob)(jnp.asarray(x0), pargs))
-    w_, v_ = np.linalg.eigh(0.5 * (h + h.T))
-    cov = (v_ / w_) @ v_.T
-    root = _sqrt_psd(cov)
-    rng = np.random.default_rng(0)
-    probe_pts = x0 + rng.standard_normal((50, d)) @ root.T
-    vec = _vectorised(log_prob)
-    lj = np.asarray(vec(jnp.asarray(probe_pts), pargs))
-    ln = np.array([np_lp(p) for p in probe_pts])
-    same = float(np.max(np.abs(lj - ln)))
-    nw = max(64, 4 * d)
-    nsteps = 600 if args.quick else 4000
-    burn = nsteps // 4
-    p0 = x0 + rng.standard_normal((nw, d)) @ root.T
-    moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
-
-    def f_jax(p):
-        out = np.asarray(vec(jnp.asarray(p), pargs), dtype=float)
-        return np.where(np.isnan(out), -np.inf, out)
-
-    f_jax(p0)  # compile
-    results = {}
-    for label, fn, vecz in (("JAX (jit+vmap, vectorize=True)", f_jax, True),
-                            ("NumPy (per walker)", np_lp, False)):  # fmt: skip
-        sampler = emcee.EnsembleSampler(nw, d, fn, vectorize=vecz, moves=moves)
-        t0 = time.perf_counter()
-        sampler.run_mcmc(p0, nsteps, progress=False)
-        wall = time.perf_counter() - t0
-        ess, tau, s = _emcee_ess(sampler, burn)
-        results[label] = (wall, ess, tau, s)
-    from piecs_bayes.fit import sample_posteriors
-    from piecs_bayes.fit._batch_bayes import _parts_walkers
-
-    lock = {}
-    for backend, n_parts in (("numpy", 1), ("jax", 1), ("jax", 16)):
-        xs = np.repeat(x0[None], n_parts, axis=0)
-        a = jax.tree_util.tree_map(lambda z, n=n_parts: jnp.repeat(z[None], n, axis=0), pargs)
-        cov0 = np.repeat(cov[None], n_parts, 0)
-        kw = dict(names=names, args=a, nwalkers=nw, nsteps=nsteps, n_ensembles=1, cov0=cov0,
-                  progress=False, on_fail="ignore", moves="de", backend=backend)  # fmt: skip
-        _parts_walkers(log_prob)(jnp.asarray(np.repeat(xs[:, None], nw // 2, 1)), a)  # compile
-        if backend == "jax":  # compile the chain (the same shapes as the timed run)
-            sample_posteriors(log_prob, xs, **kw)
-        t0 = time.perf_counter()
-        posts = sample_posteriors(log_prob, xs, **kw)
-        wall = time.perf_counter() - t0
-        lock[backend, n_parts] = (wall, float(np.mean([np.min(p.ess) for p in posts])), posts)
-    base_wall, base_ess, _, _ = results["NumPy (per walker)"]
-    base = base_ess / base_wall
-    rows = []
-    for label, (wall, ess, tau, _) in results.items():
-        rows.append([f"emcee + {label}", f"{wall:.1f} s", f"{tau:.0f}", f"{ess:.0f}",
-                     f"{ess / wall:.0f}", f"{ess / wall / base:.1f}x"])  # fmt: skip
-    for (backend, n_parts), (wall, ess, posts) in lock.items():
-        tau = float(np.max(posts[0].tau))
-        rate = ess * n_parts / wall
-        rows.append([f"sample_posteriors, backend={backend!r}, {n_parts} part(s) in lockstep",
-                     f"{wall:.1f} s", f"{tau:.0f}", f"{ess:.0f}", f"{rate:.0f}",
-                     f"{rate / base:.1f}x"])  # fmt: skip
-    print(
-        table(
-            rows,
-            [
-                f"sampler (d={d}, {nw} walkers, {nsteps} steps, DE moves)",
-                "wall",
-                "tau (steps)",
-                "min ESS",
-                "ESS/s",
-                "vs NumPy",
-            ],
-        )  # fmt: skip
-    )
-    print(
-        f"\nSame posterior: |log p JAX - log p NumPy| <= {same:.1e} at 50 points of the start "
-        "ball. ESS = kept steps x walkers / tau (emcee's estimator, c=5), smallest over "
-        "parameters; lockstep rows: ESS/s counts the samples of all parts (compilation "
-        "excluded: a first run of the same shapes). tau from chains "
-        f"shorter than 50 tau is rough (here {nsteps - burn} kept steps)."
-    )
-    return section_d(args, log_prob, pargs, x0, cov, base)
-
-
-def section_d(args, log_prob, pargs, x0, cov, base):
-    print(f"\n## (d) NumPyro NUTS on the same posterior\n\n{load()}\n")
-    try:
-        import numpyro
-        from numpyro.diagnostics import effective_sample_size
-        from numpyro.infer import MCMC, NUTS
-    except ImportError:
-        print("numpyro is not installed: skipped (pip install 'piecs_bayes[bench]').")
-        return None
-    # NUTS is not affine invariant: sample standardised z, theta = x0 + L z (L from the
-    # Hessian at the optimum), as a NUTS user would, with an adapted diagonal mass
-    chol = np.linalg.cholesky(cov)
-    lj, x0j = jnp.asarray(chol), jnp.asarray(x0)
-
-    def potential(z):
-        v = -log_prob(x0j + lj @ z, pargs)
-        return jnp.where(jnp.isfinite(v), v, jnp.inf)
-
-    n_warm, n_samp = (300, 500) if args.quick else (1000, 2000)
-    mcmc = MCMC(NUTS(potential_fn=potential), num_warmup=n_warm, num_samples=n_samp,
-                progress_bar=False)  # fmt: skip
-    t0 = time.perf_counter()
-    mcmc.run(jax.random.PRNGKey(0), init_params=jnp.zeros(len(x0)), extra_fields=("num_steps",))
-    t_first = time.perf_counter() - t0
-    z = np.asarray(mcmc.get_samples())
-    ess1 = float(np.min(effective_sample_size(z[None])))
-    mcmc.post_warmup_state = mcmc.last_state
-    t0 = time.perf_counter()
-    mcmc.run(mcmc.post_warmup_state.rng_key, extra_fields=("num_steps",))
-    t_second = time.perf_counter() - t0
-    z = np.asarray(mcmc.get_samples())
-    ess = float(np.min(effective_sample_size(z[None])))
-    steps = float(np.mean(np.asarray(mcmc.get_extra_fields()["num_steps"])))
-    rows = [
-        [f"NUTS warmup {n_warm} + {n_samp} draws (compile included)", f"{t_first:.1f} s",
-         f"{ess1:.0f}", f"{ess1 / t_first:.0f}", f"{ess1 / t_first / base:.1f}x"],
-        [f"NUTS {n_samp} more draws (adapted, recompiled)", f"{t_second:.1f} s", f"{ess:.0f}",
-         f"{ess / t_second:.0f}", f"{ess / t_second / base:.1f}x"],
-    ]  # fmt: skip
-    print(
-        table(
-            rows, [f"numpyro {numpyro.__version__}", "wall", "min ESS", "ESS/s", "vs emcee+NumPy"]
-        )
-    )
-    print(f"\nMean leapfrog steps per draw: {steps:.1f}. ESS: numpyro's estimator, one chain.")
-    return ess / t_second
 
 
 # --------------------------------------------------------------------------- (e)

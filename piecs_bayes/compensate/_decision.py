@@ -63,7 +63,8 @@ class Decision:
     `"compensate"`; `u_correction` $= g\\,u$ propagates the estimate's standard
     uncertainty. `estimate`, `u_estimate` are what was handed in; `posterior_*` include
     the prior when one is set. `actions` lists every candidate with its expected loss
-    (the last is `bayes`); `best_action` is the one with the lowest loss;
+    (the last is `bayes`); `best_action` is the one with the lowest loss (the
+    first listed among those equal to rounding, 1e-9 relative);
     `more_points` is the extra probe points a "measure more" verdict asks for.
     `reasons` end with the conclusion, which starts with the verdict. `coordinate` and
     `scale` give the drawn deviation (`scale` × normal deviation, e.g. on the diameter):
@@ -263,7 +264,7 @@ def decide(
         null_band=float(band),
         p_exceed=core.p_exceed,
         significant=core.significant,
-        best_action=min(core.actions, key=lambda a: a.expected_loss).name,
+        best_action=_best_action(core.actions),
         actions=core.actions,
         conformance_before=core.before,
         conformance_after=core.after,
@@ -370,3 +371,11 @@ def _tolerance(tolerance, feature) -> tuple[float, float]:
             value=tolerance,
         )
     return lo, hi
+
+
+def _best_action(actions) -> str:
+    """The action with the lowest expected loss; among losses equal to rounding (1e-9
+    relative: e.g. `bayes` at gain 1 is `full`) the first listed, so that the last
+    bits of a fit never flip the choice."""
+    low = min(a.expected_loss for a in actions)
+    return next(a.name for a in actions if a.expected_loss <= low + 1e-9 * abs(low))

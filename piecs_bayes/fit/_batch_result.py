@@ -78,16 +78,19 @@ class BatchFit:
     _index: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
-        f_index = {f.id: i for i, f in enumerate(self.profile.features)}
+        ids = self.profile.ids
         # (part, feature) -> (group, row), -1 where not measured
-        where = np.full((len(self.parts), len(f_index), 2), -1, dtype=np.int64)
+        where = np.full((len(self.parts), len(ids), 2), -1, dtype=np.int64)
         for g_i, g in enumerate(self.groups):
             where[g.part, g.feature, 0] = g_i
             where[g.part, g.feature, 1] = np.arange(len(g.part))
-            for fid, fi in f_index.items():
-                rows = np.flatnonzero(g.feature == fi)
-                if rows.size:
-                    self._index.setdefault(fid, []).append((g_i, rows))
+            if not len(g.feature):
+                continue
+            # each feature's rows, ascending (one sort, not a scan per feature)
+            by = np.argsort(g.feature, kind="stable")
+            fis, first = np.unique(g.feature[by], return_index=True)
+            for fi, rows in zip(fis.tolist(), np.split(by, first[1:]), strict=True):
+                self._index.setdefault(ids[fi], []).append((g_i, rows))
         object.__setattr__(self, "_where", where)
         if self.pooled_ss is None:
             object.__setattr__(self, "pooled_ss", np.zeros(len(self.parts)))
@@ -250,7 +253,7 @@ class BatchFit:
             raise KeyError(f"no part {part!r}; parts are {', '.join(self.parts[:5])}...") from None
 
     # ------------------------------------------------------------------ per part
-    def _result(self, g: Group, row: int) -> LsqResult:
+    def _result(self, g: Group, row: int, robust: bool | None = None) -> LsqResult:
         """The `LsqResult` that `least_squares` builds from the same arrays."""
         arr = {k: v[row] for k, v in g.arrays.items()}
         names, unravel = _flat_structure(len(g.free))
@@ -258,7 +261,7 @@ class BatchFit:
             arr,
             params=np.asarray(arr["params_flat"]),
             loss=self.loss,
-            robust=not is_linear(self.loss),
+            robust=not is_linear(self.loss) if robust is None else robust,
             names=names,
             unravel=unravel,
         )
@@ -281,27 +284,33 @@ class BatchFit:
             if not throw:
                 raise
             raise InputError(str(exc), file=self.file) from None
-        factor = ps.value / self.reference_sigma  # covariances -> the part's probe sigma
+        factor2 = (ps.value / self.reference_sigma) ** 2  # covariances -> the part's sigma
+        robust = not is_linear(self.loss)
         fits, unmeasured = {}, []
-        for j, f in enumerate(self.profile.features):
-            g_i, row = (int(v) for v in self._where[i, j])
+        for j, (f, (g_i, row)) in enumerate(
+            zip(self.profile.features, self._where[i].tolist(), strict=True)
+        ):
             if g_i < 0:
                 unmeasured.append(f.id)
                 continue
             g = self.groups[g_i]
             n = int(g.count[row])
-            pts_idx = self.order[g.start[row] : g.start[row] + n]
+            start = int(g.start[row])
+            pts_idx = self.order[start : start + n]
             centres = self.centres[pts_idx]
-            res = self._result(g, row)
-            values = np.zeros(f.nparams)
-            values[list(g.free)] = np.asarray(res.params)
-            cov = None
-            if res.covariance is not None and len(g.free) == f.nparams:
-                cov = np.asarray(res.covariance) * factor**2  # as `scale_fits` scales the loop's
-            elif res.covariance is not None:
-                cov = np.zeros((f.nparams, f.nparams))
-                cov[np.ix_(g.free, g.free)] = np.asarray(res.covariance)
-                cov = cov * factor**2
+            res = self._result(g, row, robust)
+            cov = res.covariance
+            if len(g.free) == f.nparams:
+                values = np.array(res.params, dtype=float)
+                if cov is not None:
+                    cov = cov * factor2  # as `scale_fits` scales the loop's
+            else:
+                values = np.zeros(f.nparams)
+                values[list(g.free)] = res.params
+                if cov is not None:
+                    full = np.zeros((f.nparams, f.nparams))
+                    full[np.ix_(g.free, g.free)] = cov
+                    cov = full * factor2
             known = None if self.surfaces is None else self.surfaces.get((i, j))
             if known is not None:
                 surface, nominal = known[0][:n], known[1][:n]

@@ -22,7 +22,6 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -213,12 +212,14 @@ def ravel(tree):
     return flat, _Unravel(treedef, tuple(tuple(np.shape(x)) for x in leaves))
 
 
-class _FlatFn(eqx.Module):
-    """`fn` on flat parameters; an equinox Module so that two calls with the same
-    `fn` and structure hash equal and share one compiled solve."""
+@dataclasses.dataclass(frozen=True)
+class _FlatFn:
+    """`fn` on flat parameters; hashable by `fn` and structure, so that two calls with
+    the same `fn` and structure are one static argument of `filter_jit` and share one
+    compiled solve (no array leaves: the whole object is static)."""
 
-    fn: Callable = eqx.field(static=True)
-    unravel: Callable = eqx.field(static=True)
+    fn: Callable
+    unravel: Callable
 
     def __call__(self, y_flat, args):
         return jnp.asarray(self.fn(self.unravel(y_flat), args))

@@ -25,10 +25,10 @@ Cauchy tolerance to full precision; the result's statistics and final status are
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -143,7 +143,25 @@ def solve_arrays(
     )
 
 
-@eqx.filter_jit
+def _lazy_filter_jit(fn):
+    """`equinox.filter_jit(fn)`, made on the first call: equinox (~0.1 s to import)
+    is loaded only by runs that use the engine, never by the batch kernel's (the CLI's
+    fit). A race on the first call makes two equal wrappers; either serves."""
+    jitted = None
+
+    @functools.wraps(fn)
+    def call(*args, **kwargs):
+        nonlocal jitted
+        if jitted is None:
+            import equinox as eqx
+
+            jitted = eqx.filter_jit(fn)
+        return jitted(*args, **kwargs)
+
+    return call
+
+
+@_lazy_filter_jit
 def _solve_core(
     fn,
     y0,

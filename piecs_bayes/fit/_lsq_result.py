@@ -131,7 +131,8 @@ def result_from_arrays(
     status = Status(int(arr["status_code"]))
     cov_code = int(arr["covariance_code"])
     cov = None if cov_code != COV_OK else np.array(arr["covariance"])
-    outliers = tuple(int(i) for i in np.flatnonzero(arr["outlier"]))
+    flagged = np.flatnonzero(arr["outlier"])
+    outliers = tuple(flagged.tolist())
     return LsqResult(
         params=params,
         status=status,
@@ -152,7 +153,7 @@ def result_from_arrays(
         scale=float(arr["scale"]) if robust else float("nan"),
         condition_number=float(arr["condition"]),
         outliers=outliers,
-        outlier_weights=arr["robust_weights"][list(outliers)],
+        outlier_weights=arr["robust_weights"][flagged],
         params_flat=arr["params_flat"],
         _unravel=unravel,
     )

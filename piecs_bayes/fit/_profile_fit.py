@@ -70,16 +70,17 @@ def fit_profile(
     lines = np.arange(1, len(centres) + 1) if lines is None else np.asarray(lines)
     min_points = {"line": 3, "arc": 4, **(min_points or {})}
     fix = fix or {}
-    for fid in np.unique(feature_ids):
-        if fid not in profile.ids:
-            first = int(lines[np.flatnonzero(feature_ids == fid)[0]])
-            raise InputError(
-                f"unknown feature id {fid!r}; the profile has {', '.join(profile.ids)}",
-                file=file,
-                line=first,
-                column="feature",
-                feature=fid,
-            )
+    unknown = sorted(set(feature_ids.tolist()).difference(profile.ids))
+    if unknown:
+        fid = unknown[0]
+        first = int(lines[np.flatnonzero(feature_ids == fid)[0]])
+        raise InputError(
+            f"unknown feature id {fid!r}; the profile has {', '.join(profile.ids)}",
+            file=file,
+            line=first,
+            column="feature",
+            feature=fid,
+        )
     # the reference sigma of the solves: the known or declared one (it also sets the
     # scale of the stationarity test, so it should be realistic); with neither, a first
     # pass at 1 mm gives the pooled residual sd and the solves are repeated at it
@@ -150,7 +151,12 @@ def scale_fits(fits: dict, factor: float) -> dict:
 # ------------------------------------------------------------------ solver="auto"
 #: problems per compiled call of a group (residual function, point bucket) of one
 #: part: a part with more features of a group pads to the next multiple
-PART_BATCH = 8
+PART_BATCH = 1
+#: a part's point buckets of one model (kind, free parameters) merge into the next
+#: larger bucket when that adds at most this many padded points (problems x extra
+#: padding): on the CPU a compiled group costs ~0.1 ms however small, a padded point
+#: ~2 us (the demo part: lines of 8 and 16 points become one group, 0.1 ms less)
+MERGE_POINTS = 64
 #: `fit_profiles`' tolerances (those of `least_squares`, which the loop uses)
 _TOLERANCES = (1e-10, 1e-12, 1000)
 
@@ -189,6 +195,7 @@ def _fit_part(profile, feature_ids, centres, lines, fix, min_points, file, part,
         specs.setdefault((f.kind, free, padded_size(counts[j])), []).append(j)
     if not specs:
         raise InputError("no probe point belongs to any profile feature", file=file)
+    specs = _merge_buckets(specs)
     order = np.argsort(feat, kind="stable")  # points by feature, file order within
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     loss_name = "linear" if method == "lsq" else loss
@@ -231,6 +238,21 @@ def _fit_part(profile, feature_ids, centres, lines, fix, min_points, file, part,
     )  # fmt: skip
     fit = batch.profile_fit(0, throw=True)
     return fit if part is not None else dataclasses.replace(fit, part=None)
+
+
+def _merge_buckets(specs: dict[tuple, list[int]]) -> dict[tuple, list[int]]:
+    """`(kind, free, n_pad) -> feature indices` with each model's buckets merged
+    upwards while a merge adds at most `MERGE_POINTS` padded points; groups in the
+    order of their first feature, features in profile order."""
+    by_model: dict[tuple, list] = {}
+    for (kind, free, n_pad), js in sorted(specs.items(), key=lambda kv: kv[0][2]):
+        buckets = by_model.setdefault((kind, free), [])
+        if buckets and len(buckets[-1][1]) * (n_pad - buckets[-1][0]) <= MERGE_POINTS:
+            buckets[-1] = (n_pad, sorted(buckets[-1][1] + js))
+        else:
+            buckets.append((n_pad, list(js)))
+    merged = {(*model, n_pad): js for model, b in by_model.items() for n_pad, js in b}
+    return dict(sorted(merged.items(), key=lambda kv: kv[1][0]))
 
 
 def _fit_part_batch(profile, feature_ids, centres, lines, fix, min_points, file, part, kw):
@@ -281,6 +303,7 @@ def _unpack(flat: np.ndarray, layout, specs) -> tuple[list[dict], dict]:
     return arrays, surfaces
 
 
+@functools.lru_cache(maxsize=64)
 def _table_key(profile: Profile):
     """Shapes and dtypes of the nominal geometry's leaves (the geometry is data)."""
     from ._batch_solve import geometry_table

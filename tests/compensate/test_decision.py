@@ -267,3 +267,17 @@ def test_realised_loss_no_worse_than_best_fixed_policy(s_d, u, extra):
     diff = loss - _realised_loss(delta, fixed[best], st, TOL)  # paired: same deviations
     se = diff.std(ddof=1) / math.sqrt(runs)
     assert diff.mean() <= 2 * se, (best, diff.mean(), se)
+
+
+def test_best_action_ties_to_rounding_go_to_the_first_listed():
+    """`bayes` at gain 1 is `full`: a last-bit difference must not flip the choice."""
+    from types import SimpleNamespace as A
+
+    from piecs_bayes.compensate._decision import _best_action
+
+    loss = 0.06235607048
+    acts = [A(name="none", expected_loss=2.0), A(name="full", expected_loss=loss),
+            A(name="bayes", expected_loss=loss * (1 - 2e-16))]  # fmt: skip
+    assert _best_action(acts) == "full"
+    acts[-1] = A(name="bayes", expected_loss=loss * (1 - 1e-6))
+    assert _best_action(acts) == "bayes"
