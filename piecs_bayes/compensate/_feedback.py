@@ -31,11 +31,16 @@ scatter (true for a wear-offset or a path correction of the finish cut).
   would have with the current correction, `mean` $= \\beta m_k + c_{k-1}$,
   `sd` $= \\sqrt{\\beta^2 v_k}$, with `process_sd` at least the model's scatter; its
   `correction` is the adjustment, $c_k = c_{k-1} + $ correction. With one part and no
-  process noise this is the one-part decision itself.
+  process noise this is the one-part decision itself. The decision's `max_correction`
+  (default: the tolerance width; "investigate first") withholds an adjustment larger
+  than it, unless the adjustment brings the total correction closer to zero: undoing
+  a correction is never blocked (else a large correction, e.g. after two odd parts
+  taken for a step, would be locked in: undoing it is an adjustment as large).
 
 The memory of `mean_value`, `ewma` and `dewma` restarts at a declared tool change
 (as a controller's cycle is reset with a new tool); `bayes` knows the change as a
-level step of unknown size.
+level step of unknown size and that the new edge starts unworn (the wear accumulated
+since the previous change goes with the old edge: `TrackModel.wear_reset`).
 
 **Tuning.** The anchors are tuned fairly: `tune` replays every setting of
 `TUNING_GRIDS[policy]` on the same data and keeps the lowest RMS deviation (a
@@ -220,6 +225,21 @@ def _check_settings(policy, settings) -> dict:
 
 
 _CHUNK = 64  # runs filtered at once on the whole grid (memory: about 60 MB)
+_NO_LIMIT = 1e3  # mm: the decision's own limit, applied by the loop instead (`_held`)
+
+
+def _loop_settings(ds: DecisionSettings, tolerance) -> tuple[DecisionSettings, float]:
+    """The decision's settings in the loop (its own limit off) and the limit on one
+    adjustment (`max_correction`, default the tolerance width)."""
+    limit = tolerance[1] - tolerance[0] if ds.max_correction is None else ds.max_correction
+    return replace(ds, max_correction=_NO_LIMIT), float(limit)
+
+
+def _held(c_prev, adjustment, limit):
+    """True where an adjustment is larger than `limit` and does not bring the total
+    correction closer to zero (withheld: investigate first)."""
+    c_prev = np.asarray(c_prev)
+    return (np.abs(adjustment) > limit) & (np.abs(c_prev + adjustment) >= np.abs(c_prev))
 
 
 def _bayes_predictive(dev, u, declared, model, transfer):
@@ -246,10 +266,12 @@ def _bayes(dev, u, declared, tolerance, ds, model, transfer):
     `(R, n)` of the one-step-ahead predictives."""
     r_, n = dev.shape
     m, sd, sc2, pit = _bayes_predictive(dev, u, declared, model, transfer)
+    ds, limit = _loop_settings(ds, tolerance)
     c = np.zeros((r_, n))
     for k in range(1, n):
         p_sd = np.maximum(ds.process_sd, np.sqrt(sc2[:, k]))
-        c[:, k] = c[:, k - 1] + corrections(m[:, k] + c[:, k - 1], sd[:, k], p_sd, tolerance, ds)
+        adj = corrections(m[:, k] + c[:, k - 1], sd[:, k], p_sd, tolerance, ds)
+        c[:, k] = c[:, k - 1] + np.where(_held(c[:, k - 1], adj, limit), 0.0, adj)
     return c, pit
 
 
@@ -454,8 +476,17 @@ def next_part(
     )  # fmt: skip
     last = float(c_prev[-1])
     mean = tr.next_mean + last
-    st = replace(ds, process_sd=max(ds.process_sd, tr.transfer[0] * scatter))
+    st, limit = _loop_settings(ds, tol)
+    st = replace(st, process_sd=max(ds.process_sd, tr.transfer[0] * scatter))
     d = decide(tolerance=tol, mean=mean, sd=tr.next_sd, settings=st)
+    if _held(last, d.correction, limit):
+        d = replace(
+            d, verdict="do not compensate", gain=0.0, correction=0.0, u_correction=0.0,
+            blocked=True,
+            reasons=(f"do not compensate: the adjustment {d.correction * 1e3:+.2f} µm exceeds "
+                     f"max_correction {limit * 1e3:.2f} µm and does not bring the correction "
+                     f"({last * 1e3:+.2f} µm) back: investigate first",),
+        )  # fmt: skip
     return {
         "correction": last + d.correction,
         "adjustment": d.correction,

@@ -8,17 +8,32 @@ hyper-parameters filter in one pass.
 **State.** $x_k = (\\ell_k, d_k)$, level and drift of part $k$. Each part has an
 indicator $s_k \\in \\{0, 1, 2\\}$: 0 regular, 1 odd part (observation variance
 $+\\,\\sigma_o^2$), 2 undeclared step (level variance $+\\,\\sigma_s^2$). A declared tool
-change adds $\\sigma_s^2$ whatever $s_k$. Prior $\\pi = (1 - p_o - p_s, p_o, p_s)$, at a
-declared change $(1 - p_o, p_o, 0)$.
+change adds $\\sigma_s^2$ whatever $s_k$ and removes the wear of the old edge (below).
+Prior $\\pi = (1 - p_o - p_s, p_o, p_s)$, at a declared change $(1 - p_o, p_o, 0)$.
 
-**Filter (GPB2).** After part $k$ the posterior is kept as three Gaussians, one per value
-of $s_k$, with weights $w_{s}$. Part $k+1$ expands them into $3\\times 3$ Kalman updates
-(one per pair $(s_k, s_{k+1})$), weighs each by $w_{s_k}\\,\\pi_{s_{k+1}}\\,
-N(y_{k+1}; \\hat y, S)$ and merges, by moment matching, the three that share $s_{k+1}$.
-The log predictive density of $y_{k+1}$ is the log of the sum of the nine weights. The
-merged weights over $s_k$ are $p(s_k \\mid y_{0:k+1})$: the indicator of a part is
-judged with one part of hindsight, which is what tells an odd part (the next part is
-back) from a step (the next part stays).
+**Filter.** The exact posterior over the indicators is a mixture of $3^n$ Gaussians.
+It is kept as $L + 2$ Gaussians ($L$ = `STEP_MEMORY`), one per *recent event*: none
+kept apart (`base`), the last part odd, or an undeclared step $j = 0, \\dots, L - 1$
+parts ago followed by regular parts. Part $k+1$ expands every component by its own
+indicator ($3(L + 2)$ Kalman updates), weighs each by $w_c\\,\\pi_{s}\\,
+N(y_{k+1}; \\hat y, S)$ and merges, by moment matching, those that map to the same
+component: a new odd part or step starts its own component (merging all sources); a
+regular part moves "step $j$ ago" to "step $j + 1$ ago", and "odd" and "step $L - 1$ ago"
+into `base`. The log predictive density of $y_{k+1}$ is the log of the sum of the
+weights. An odd part is thus judged with one part of hindsight (the next part is back
+on the level: Bar-Shalom & Li's GPB2, which is `STEP_MEMORY = 1`), a step with up to
+$L - 1$ parts of hindsight before its hypothesis is merged: merging a step that the
+next part alone cannot confirm or refute widens the level's variance and makes the
+filter follow the scatter of the next parts, the cost GPB2 pays in a run without
+steps (see docs/feedback.md). The merged weights give the indicators' probabilities
+with hindsight (`p_lag`).
+
+**Declared tool change: the wear restarts.** A new edge has no flank wear: at a
+declared change at part $t$ the level is $\\ell_t = \\ell_{t-1} + d\\,(1 - \\rho m)
++ J$, with $m$ the parts cut since the previous declared change (or since the first
+part of the run, which is taken to start on a fresh edge), $\\rho$ = `wear_reset`
+(1: all the wear of the old edge, $m d$ for a constant wear rate, goes with it) and
+$J \\sim N(0, \\sigma_s^2)$ the new edge's setting. Linear in the state: exact Kalman.
 
 **Diffuse start.** With `level0_sd = None` the level of part 0 is diffuse: part 0 sets
 the level ($\\ell_0 \\mid y_0 \\sim N(y_0, R_0)$, $R_0$ its observation variance) and
@@ -38,6 +53,9 @@ __all__: list[str] = []
 _TINY = 1e-300
 _LOG2PI = float(np.log(2.0 * np.pi))
 
+STEP_MEMORY = 6
+"""Parts an undeclared step's hypothesis is kept apart (with hindsight) before merging."""
+
 
 def _log_prior(p_odd, p_step, declared):
     """`(..., n, 3)` log prior of the indicators (zero probabilities floored at 1e-300)."""
@@ -47,7 +65,34 @@ def _log_prior(p_odd, p_step, declared):
     return np.log(np.maximum(pri, _TINY))
 
 
-def mixture_filter(y, r, par, declared):
+def _merge(logw, *moments):
+    """Moment-match Gaussians `(B, M)` (log weights, then `a, d, p11, p12, p22`) over
+    axis 1: `(log total weight, a, d, p11, p12, p22)`, each `(B,)`."""
+    lt = special.logsumexp(logw, axis=1)
+    g = np.exp(logw - lt[:, None])
+    a, d, p11, p12, p22 = moments
+    ma, md = np.sum(g * a, 1), np.sum(g * d, 1)
+    da, dd = a - ma[:, None], d - md[:, None]
+    return (lt, ma, md, np.sum(g * (p11 + da * da), 1), np.sum(g * (p12 + da * dd), 1),
+            np.sum(g * (p22 + dd * dd), 1))  # fmt: skip
+
+
+def wear_factor(declared, wear_reset) -> np.ndarray:
+    """`(B, n)` the drift's coefficient in the level's transition to part k:
+    $1 - \\rho\\,m$ at a declared change ($m$ parts since the previous one or the
+    first part), 1 elsewhere (see the module doc)."""
+    declared = np.asarray(declared, dtype=bool)
+    b, n = declared.shape
+    since = np.zeros((b, n))
+    last = np.zeros(b)
+    for k in range(n):
+        since[:, k] = k - last
+        last = np.where(declared[:, k], k, last)
+    rho = np.asarray(wear_reset, dtype=float)[:, None]
+    return np.where(declared, 1.0 - rho * since, 1.0)
+
+
+def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY):
     """Run the collapsed mixture filter on a batch of series.
 
     **Arguments:**
@@ -55,25 +100,31 @@ def mixture_filter(y, r, par, declared):
     - `y`: `(B, n)` observed values (mm).
     - `r`: `(B, n)` measurement variances $u_k^2$ (mm$^2$), all > 0.
     - `par`: dict of `(B,)` arrays: `scatter2`, `q_level`, `q_drift`, `drift0`,
-      `step2`, `p_step`, `p_odd`, `odd2` (variances in mm$^2$) and `level0` (prior
-      variance of the level of part 0, `inf` for diffuse).
+      `step2`, `p_step`, `p_odd`, `odd2` (variances in mm$^2$), `level0` (prior
+      variance of the level of part 0, `inf` for diffuse), `drift0_mean` (mm/part)
+      and `wear_reset`.
     - `declared`: `(B, n)` or `(n,)` booleans, True at a declared tool change.
+    - `memory`: `STEP_MEMORY` (1: GPB2).
 
     **Returns:** a dict of arrays: `loglik` `(B, n)` (log predictive density of each part;
-    0 for a diffuse part 0), `pw`, `pm`, `ps` `(B, n, 9)` (weights, means and sds of the
-    one-step-ahead predictive mixture of $y_k$; NaN for a diffuse part 0), `pit`
-    `(B, n)` (that mixture's cdf at $y_k$), `lm`, `lv`
-    `(B, n)` (predictive mean and variance of the level of part $k$ given parts $< k$,
-    the regular component plus a declared step; the collapsed mixture), `fm`, `fv`
+    0 for a diffuse part 0), `pw`, `pm`, `ps` `(B, n, 3C)` (weights, means and sds of the
+    one-step-ahead predictive mixture of $y_k$, $C$ = `memory` + 2; NaN for a diffuse
+    part 0), `pit` `(B, n)` (that mixture's cdf at $y_k$), `lm`, `lv` `(B, n)`
+    (predictive mean and variance of the level of part $k$ given parts $< k$, the
+    regular component plus a declared step; the collapsed mixture), `fm`, `fv`
     `(B, n)` (filtered level mean and variance), `fd`, `fdv` (filtered drift),
-    `p_filt` `(B, n, 3)` ($p(s_k \\mid y_{0:k})$), `p_lag` `(B, n, 3)`
-    ($p(s_k \\mid y_{0:k+1})$; the last part: filtered), `next_m`, `next_v` `(B,)`
-    (level predictive for part n).
+    `p_filt` `(B, n, 3)` ($p(s_k \\mid y_{0:k})$), `p_lag` `(B, n, 3)` (the
+    indicators with hindsight: odd given $y_{0:k+1}$; a step given $y_{0:k+j}$,
+    $j$ = `memory` or the parts left, the share merged into a later odd part or step
+    given the parts up to it; both filtered at the end of the run; regular the rest),
+    `next_m`, `next_v` `(B,)` (level predictive for part n).
     """
     y = np.asarray(y, dtype=float)
     r = np.asarray(r, dtype=float)
     b, n = y.shape
+    c_n = memory + 2
     declared = np.broadcast_to(np.asarray(declared, dtype=bool), (b, n))
+    fwear = wear_factor(declared, par.get("wear_reset", np.zeros(b)))
     scatter2 = par["scatter2"][:, None]
     q_level = par["q_level"][:, None]
     q_drift = par["q_drift"][:, None]
@@ -89,26 +140,30 @@ def mixture_filter(y, r, par, declared):
         k: np.full((b, n), np.nan) for k in ("loglik", "lm", "lv", "fm", "fv", "fd", "fdv", "pit")
     }
     for k in ("pw", "pm", "ps"):
-        out[k] = np.full((b, n, 9), np.nan)
+        out[k] = np.full((b, n, 3 * c_n), np.nan)
     out["p_filt"] = np.full((b, n, 3), np.nan)
-    out["p_lag"] = np.full((b, n, 3), np.nan)
+    p_odd_lag = np.full((b, n), np.nan)
+    p_step_lag = np.full((b, n), np.nan)
+    gone = np.zeros((b, n))  # a step's probability merged away by a later odd part or step
 
-    # carried components, indexed by s_{k-1}: weights (B, 3), moments (B, 3)
-    w = np.tile([1.0, 0.0, 0.0], (b, 1))
-    a = np.zeros((b, 3))
-    d = np.zeros((b, 3))
-    p11 = np.tile(np.where(diffuse, 0.0, level0)[:, None], (1, 3))
-    p12 = np.zeros((b, 3))
-    p22 = np.tile(par["drift0"][:, None], (1, 3))
+    # carried components (B, C): weights and moments
+    w = np.zeros((b, c_n))
+    w[:, 0] = 1.0
+    a = np.zeros((b, c_n))
+    d = np.tile(par.get("drift0_mean", np.zeros(b))[:, None], (1, c_n))
+    p11 = np.tile(np.where(diffuse, 0.0, level0)[:, None], (1, c_n))
+    p12 = np.zeros((b, c_n))
+    p22 = np.tile(par["drift0"][:, None], (1, c_n))
     for k in range(n):
         qadd = np.where(declared[:, k : k + 1], 1.0, s_step[None, :]) * step2  # (B, 3) by s_k
         rk = r[:, k : k + 1] + scatter2 + s_odd[None, :] * odd2  # (B, 3) by s_k
         if k == 0:
             pa, pd, pp11, pp12, pp22 = a, d, p11, p12, p22
         else:
-            pa, pd = a + d, d
-            pp11 = p11 + 2.0 * p12 + p22 + q_level
-            pp12, pp22 = p12 + p22, p22 + q_drift
+            f = fwear[:, k : k + 1]
+            pa, pd = a + f * d, d
+            pp11 = p11 + 2.0 * f * p12 + f * f * p22 + q_level
+            pp12, pp22 = p12 + f * p22, p22 + q_drift
         # level predictive for part k (before its indicator): declared step included
         dec = np.where(declared[:, k], step2[:, 0], 0.0)
         lm = np.sum(w * pa, 1)
@@ -116,7 +171,7 @@ def mixture_filter(y, r, par, declared):
         first = diffuse & (k == 0)
         out["lm"][:, k] = np.where(first, np.nan, lm)
         out["lv"][:, k] = np.where(first, np.nan, lv)
-        # expand: (B, j=s_{k-1}, s=s_k)
+        # expand: (B, c, s)
         e11 = pp11[:, :, None] + qadd[:, None, :]
         e12 = np.broadcast_to(pp12[:, :, None], e11.shape)
         e22 = np.broadcast_to(pp22[:, :, None], e11.shape)
@@ -126,54 +181,63 @@ def mixture_filter(y, r, par, declared):
         yk = y[:, k][:, None, None]
         with np.errstate(divide="ignore"):
             logw_prev = np.log(np.maximum(w, _TINY))
-        first_diffuse = diffuse & (k == 0)
         s = e11 + rr
         innov = yk - ea
         logn = -0.5 * (_LOG2PI + np.log(s) + innov**2 / s)
-        logn = np.where(first_diffuse[:, None, None], 0.0, logn)
-        logj = logw_prev[:, :, None] + logpri[:, k][:, None, :] + logn  # (B, 3, 3)
-        if k == 0:
-            logj[:, 1:, :] = np.log(_TINY) + logj[:, 1:, :]  # one prior component at part 0
-        tot = special.logsumexp(logj.reshape(b, 9), axis=1)
-        out["loglik"][:, k] = np.where(first_diffuse, 0.0, tot)
-        # predictive mixture of y_k: prior weights, no data
-        logp = logw_prev[:, :, None] + logpri[:, k][:, None, :]
-        if k == 0:
-            logp = logp + np.array([0.0, np.log(_TINY), np.log(_TINY)])[None, :, None]
-        pw = np.exp(logp - special.logsumexp(logp.reshape(b, 9), 1)[:, None, None])
-        out["pw"][:, k] = pw.reshape(b, 9)
-        out["pm"][:, k] = np.where(first_diffuse[:, None], np.nan, ea.reshape(b, 9))
-        out["ps"][:, k] = np.where(first_diffuse[:, None], np.nan, np.sqrt(s).reshape(b, 9))
+        logn = np.where(first[:, None, None], 0.0, logn)
+        logp = logw_prev[:, :, None] + logpri[:, k][:, None, :]  # prior weights, no data
+        logj = (logp + logn).reshape(b, 3 * c_n)
+        tot = special.logsumexp(logj, axis=1)
+        out["loglik"][:, k] = np.where(first, 0.0, tot)
+        pw = np.exp(logp - special.logsumexp(logp.reshape(b, -1), 1)[:, None, None])
+        out["pw"][:, k] = pw.reshape(b, -1)
+        out["pm"][:, k] = np.where(first[:, None], np.nan, ea.reshape(b, -1))
+        out["ps"][:, k] = np.where(first[:, None], np.nan, np.sqrt(s).reshape(b, -1))
         pit = np.sum(pw * special.ndtr(innov / np.sqrt(s)), axis=(1, 2))
-        out["pit"][:, k] = np.where(first_diffuse, np.nan, pit)
-        # update every pair
+        out["pit"][:, k] = np.where(first, np.nan, pit)
+        # update every (component, indicator) pair
         k1, k2 = e11 / s, e12 / s
-        ua = np.where(first_diffuse[:, None, None], yk, ea + k1 * innov)
-        ud = np.where(first_diffuse[:, None, None], ed, ed + k2 * innov)
-        u11 = np.where(first_diffuse[:, None, None], rr, e11 * rr / s)
-        u12 = np.where(first_diffuse[:, None, None], 0.0, e12 * rr / s)
-        u22 = np.where(first_diffuse[:, None, None], e22, e22 - e12 * e12 / s)
-        post = np.exp(logj - tot[:, None, None])  # (B, j, s)
-        ws = post.sum(1)  # (B, s)
-        out["p_filt"][:, k] = ws
-        if k > 0:
-            out["p_lag"][:, k - 1] = post.sum(2)
-        # merge over j for each s (within-group weights from logs: no 0/0)
-        g = np.exp(logj - special.logsumexp(logj, axis=1)[:, None, :])  # (B, j, s)
-        a = np.sum(g * ua, 1)
-        d = np.sum(g * ud, 1)
-        da, dd = ua - a[:, None, :], ud - d[:, None, :]
-        p11 = np.sum(g * (u11 + da * da), 1)
-        p12 = np.sum(g * (u12 + da * dd), 1)
-        p22 = np.sum(g * (u22 + dd * dd), 1)
-        w = ws
+        fd_ = first[:, None, None]
+        ua = np.where(fd_, yk, ea + k1 * innov).reshape(b, -1)
+        ud = np.where(fd_, ed, ed + k2 * innov).reshape(b, -1)
+        u11 = np.where(fd_, rr, e11 * rr / s).reshape(b, -1)
+        u12 = np.where(fd_, 0.0, e12 * rr / s).reshape(b, -1)
+        u22 = np.where(fd_, e22, e22 - e12 * e12 / s).reshape(b, -1)
+        post = np.exp(logj - tot[:, None]).reshape(b, c_n, 3)
+        out["p_filt"][:, k] = post.sum(1)
+        if k > 0:  # part k - 1 odd; a step at part k - j (carried as "step j - 1 ago")
+            p_odd_lag[:, k - 1] = post[:, 1].sum(1)
+            for j in range(1, min(memory, k) + 1):
+                p_step_lag[:, k - j] = post[:, 1 + j].sum(1) + gone[:, k - j]
+                gone[:, k - j] += post[:, 1 + j, 1:].sum(1)  # merged into a new event
+        # merge into the components of part k (see the module doc)
+        lj = logj.reshape(b, c_n, 3)
+        mom = [v.reshape(b, c_n, 3) for v in (ua, ud, u11, u12, u22)]
+        base = [0, 1, c_n - 1]  # regular part after none kept apart, odd, oldest step
+        merged = [
+            _merge(lj[:, base, 0], *(v[:, base, 0] for v in mom)),
+            _merge(lj[:, :, 1], *(v[:, :, 1] for v in mom)),  # a new odd part
+            _merge(lj[:, :, 2], *(v[:, :, 2] for v in mom)),  # a new step
+        ]
+        lt, a, d, p11, p12, p22 = (np.stack(z, 1) for z in zip(*merged, strict=True))
+        if memory > 1:  # step j - 1 parts ago, then a regular part: step j ago
+            older = slice(2, c_n - 1)
+            lt = np.concatenate([lt, lj[:, older, 0]], 1)
+            a, d, p11, p12, p22 = (
+                np.concatenate([x, v[:, older, 0]], 1)
+                for x, v in zip((a, d, p11, p12, p22), mom, strict=True)
+            )
+        w = np.exp(lt - tot[:, None])
         fm = np.sum(w * a, 1)
         fd = np.sum(w * d, 1)
         out["fm"][:, k] = fm
         out["fv"][:, k] = np.sum(w * (p11 + (a - fm[:, None]) ** 2), 1)
         out["fd"][:, k] = fd
         out["fdv"][:, k] = np.sum(w * (p22 + (d - fd[:, None]) ** 2), 1)
-    out["p_lag"][:, n - 1] = out["p_filt"][:, n - 1]
+    p_odd_lag[:, n - 1] = out["p_filt"][:, n - 1, 1]
+    p_step_lag[:, n - 1] = out["p_filt"][:, n - 1, 2]
+    p_step_lag = np.minimum(p_step_lag, 1.0 - p_odd_lag)
+    out["p_lag"] = np.stack([1.0 - p_odd_lag - p_step_lag, p_odd_lag, p_step_lag], -1)
     na = a + d
     nm = np.sum(w * na, 1)
     n11 = p11 + 2.0 * p12 + p22 + q_level
@@ -187,8 +251,8 @@ def smoother(y, r, par, declared, p_odd, p_step):
 
     The observation precision of part $k$ is its expectation over the indicator,
     $1/R_k = (1-p_{o,k})/R + p_{o,k}/(R + \\sigma_o^2)$, and the step variance
-    $p_{s,k}\\sigma_s^2$ ($\\sigma_s^2$ at a declared change): exact when the
-    probabilities are 0 or 1 (a Gaussian model, or indicators known).
+    $p_{s,k}\\sigma_s^2$ ($\\sigma_s^2$ and the wear restart at a declared change): exact
+    when the probabilities are 0 or 1 (a Gaussian model, or indicators known).
 
     **Arguments:** `y`, `r`, `par`, `declared` as for [`mixture_filter`][];
     `p_odd`, `p_step`: `(B, n)` indicator probabilities.
@@ -201,19 +265,23 @@ def smoother(y, r, par, declared, p_odd, p_step):
     reff = 1.0 / ((1.0 - p_odd) / base + p_odd / (base + par["odd2"][:, None]))
     qadd = np.where(declared, 1.0, p_step) * par["step2"][:, None]
     diffuse = ~np.isfinite(par["level0"])
+    fwear = wear_factor(declared, par.get("wear_reset", np.zeros(b)))
     fa = np.zeros((b, n, 2))
     fp = np.zeros((b, n, 2, 2))
     pa = np.zeros((b, n, 2))
     pp = np.zeros((b, n, 2, 2))
-    m = np.zeros((b, 2))
+    d0 = par.get("drift0_mean", np.zeros(b))
+    m = np.stack([np.zeros(b), d0], 1)
     p = np.zeros((b, 2, 2))
     p[:, 0, 0] = np.where(diffuse, 0.0, par["level0"])
     p[:, 1, 1] = par["drift0"]
-    tr = np.array([[1.0, 1.0], [0.0, 1.0]])
+    tr = np.zeros((b, n, 2, 2))  # transition into part k
+    tr[:, :, 0, 0] = tr[:, :, 1, 1] = 1.0
+    tr[:, :, 0, 1] = fwear
     for k in range(n):
         if k > 0:
-            m = m @ tr.T
-            p = tr @ p @ tr.T
+            m = np.einsum("bij,bj->bi", tr[:, k], m)
+            p = tr[:, k] @ p @ np.swapaxes(tr[:, k], 1, 2)
             p[:, 0, 0] += par["q_level"] + qadd[:, k]
             p[:, 1, 1] += par["q_drift"]
         pa[:, k], pp[:, k] = m, p
@@ -222,7 +290,7 @@ def smoother(y, r, par, declared, p_odd, p_step):
         m = m + gain * (y[:, k] - m[:, 0])[:, None]
         p = p - gain[:, :, None] * p[:, 0, :][:, None, :]
         if k == 0:
-            m = np.where(diffuse[:, None], np.stack([y[:, 0], np.zeros(b)], 1), m)
+            m = np.where(diffuse[:, None], np.stack([y[:, 0], d0], 1), m)
             p0 = np.zeros((b, 2, 2))
             p0[:, 0, 0] = reff[:, 0]
             p0[:, 1, 1] = par["drift0"]
@@ -235,7 +303,7 @@ def smoother(y, r, par, declared, p_odd, p_step):
     mean[:, -1], var[:, -1] = sm[:, 0], sp[:, 0, 0]
     for k in range(n - 2, -1, -1):
         ppk = pp[:, k + 1]
-        cross = fp[:, k] @ tr.T  # Cov(x_k, x_{k+1} | y_{0:k})
+        cross = fp[:, k] @ np.swapaxes(tr[:, k + 1], 1, 2)  # Cov(x_k, x_{k+1} | y_{0:k})
         jmat = cross @ np.linalg.pinv(ppk, hermitian=True)
         sm = fa[:, k] + np.einsum("bij,bj->bi", jmat, sm - pa[:, k + 1])
         sp = fp[:, k] + jmat @ (sp - ppk) @ np.swapaxes(jmat, 1, 2)

@@ -200,3 +200,40 @@ def test_next_part_is_the_replays_next_correction():
     nxt = next_part(res.realised[:11], u[:11], tolerance=TOL, applied=c[:11])
     assert nxt["correction"] == pytest.approx(c[11], abs=1e-7 * UM)
     assert nxt["adjustment"] == pytest.approx(c[11] - c[10], abs=1e-7 * UM)
+
+
+def test_a_large_correction_is_undone_not_locked_in():
+    """The level steps down 14 µm and 14 µm more, then comes back: the policy builds a
+    correction of about +29 µm in adjustments below max_correction (the tolerance
+    width, 20 µm) and undoes it when the level is back. Undoing is never withheld: a
+    limit on every adjustment would keep a large correction once the model's prediction
+    moves back by more than the limit in one part (e.g. odd parts taken for a step)."""
+    from piecs_bayes.compensate._feedback import _held
+
+    rng = np.random.default_rng(11)
+    dev = rng.normal(0.0, 1.0, 40) * UM
+    dev[20:26] -= 14 * UM
+    dev[26:28] -= 28 * UM
+    res = replay(dev, UM, policy="bayes", settings={}, tolerance=TOL)
+    c = res.corrections
+    assert c[28] > 25 * UM
+    assert np.all(np.abs(c[31:]) < 1.5 * UM)
+    assert not _held(30 * UM, -30 * UM, 20 * UM)  # back towards zero: applied
+    assert not _held(30 * UM, -45 * UM, 20 * UM)
+    assert _held(0.0, 25 * UM, 20 * UM) and _held(10 * UM, 25 * UM, 20 * UM)
+    assert not _held(10 * UM, 15 * UM, 20 * UM)  # within the limit
+
+
+def test_next_part_withholds_a_large_adjustment_away_from_zero():
+    y = np.array([25.0, 25.5, 24.8, 25.2]) * UM  # 25 µm off, nothing corrected yet
+    held = next_part(y, UM, tolerance=TOL)
+    assert held["adjustment"] == 0.0 and held["correction"] == 0.0
+    assert held["decision"].verdict == "do not compensate" and held["decision"].blocked
+    assert "max_correction" in held["decision"].reasons[0]
+    assert decide(tolerance=TOL, mean=float(np.mean(y)), sd=UM).blocked  # as decide
+    # cut with a +30 µm correction that is no longer needed: undone in one adjustment
+    applied = np.full(4, 30.0) * UM
+    back = next_part(applied + np.array([0.5, -0.3, 0.2, 0.0]) * UM, UM, tolerance=TOL,
+                     applied=applied)  # fmt: skip
+    assert back["adjustment"] == pytest.approx(-30 * UM, abs=1.5 * UM)
+    assert abs(back["correction"]) < 1.5 * UM

@@ -1,17 +1,22 @@
 """Part-to-part tracking: known answers for the Kalman filter, the smoother and the mixture."""
 
+import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from piecs_bayes.compensate._tracking import (
+    GRID_LOG_PRIOR,
     HYPER_GRID,
     TrackModel,
+    _params,
     fit_track_model,
     fit_transfer,
     track,
 )
+from piecs_bayes.compensate._tracking_filter import STEP_MEMORY, mixture_filter
 from piecs_bayes.errors import InputError
 
 UM = 1e-3
@@ -24,69 +29,168 @@ def _gaussian(**kw):
     return TrackModel(**base)
 
 
-def _joint(model, u, declared):
-    """The 4-part run as one multivariate normal: the loadings of (levels 0..n, y 0..n-1)
-    on independent standard normals, written out from the model's equations."""
+def _joint(model, u, declared, steps=(), odd=()):
+    """A short run as one multivariate normal: the loadings of (levels 0..n, y 0..n-1)
+    on independent standard normals and their prior means, written out from the model's
+    equations (a declared change at part k: a step, and the wear of the k - last parts
+    cut since the previous change goes with the old edge; `steps`, `odd`: the parts
+    with an undeclared step or odd, the indicators given)."""
     n = len(u)
-    # independent sources: level0, drift0, (w_k, v_k, step_k) for k=1..n, e_k for k<n
-    n_src = 2 + 3 * n + n
+    last = 0
+    # independent sources: level0, drift0, (w_k, v_k, step_k) for k=1..n, e_k for k<n,
+    # a step at part 0
+    n_src = 2 + 3 * n + n + 1
     lev = np.zeros((n + 1, n_src))
     dri = np.zeros((n + 1, n_src))
+    mean = np.zeros(n + 1)
     lev[0, 0] = model.level0_sd
+    lev[0, -1] = model.step_sd * (0 in steps)
     dri[0, 1] = model.drift0_sd
     for k in range(1, n + 1):
         j = 2 + 3 * (k - 1)
-        lev[k] = lev[k - 1] + dri[k - 1]
+        change = k < n and declared[k]
+        f = 1.0 - model.wear_reset * (k - last) * change
+        lev[k] = lev[k - 1] + f * dri[k - 1]
+        mean[k] = mean[k - 1] + f * model.drift0_mean
         lev[k, j] = model.level_sd
-        if k < n and declared[k]:
+        if change or k in steps:
             lev[k, j + 2] = model.step_sd
+        if change:
+            last = k
         dri[k] = dri[k - 1]
         dri[k, j + 1] = model.drift_sd
     ys = lev[:n].copy()
     for k in range(n):
-        ys[k, 2 + 3 * n + k] = math.sqrt(model.scatter_sd**2 + u[k] ** 2)
-    return lev, ys
+        ys[k, 2 + 3 * n + k] = math.sqrt(
+            model.scatter_sd**2 + u[k] ** 2 + (k in odd) * model.outlier_scale**2
+        )
+    return lev, ys, mean
 
 
-def _condition(a_rows, y_rows, y, idx):
-    """Mean and variance of each `a_rows` given y[idx] (zero prior mean)."""
+def _cond(row, y_rows, y, idx, m_row, mean):
+    """Mean and variance of the quantity with loadings `row` (1, n_src) and prior mean
+    `m_row` given y[idx] (`mean`: the levels' prior means, y's are the first n)."""
     if len(idx) == 0:
-        return np.zeros(len(a_rows)), np.sum(a_rows**2, 1)
+        return m_row, float(np.sum(row**2))
     yy = y_rows[idx]
-    syy = yy @ yy.T
-    say = a_rows @ yy.T
-    gain = np.linalg.solve(syy, say.T).T
-    mean = gain @ y[idx]
-    var = np.sum(a_rows**2, 1) - np.sum(gain * say, 1)
-    return mean, var
+    say = row @ yy.T
+    gain = np.linalg.solve(yy @ yy.T, say.T).T
+    est = m_row + gain @ (y[idx] - mean[idx])
+    return float(est[0]), float(np.sum(row**2) - np.sum(gain * say))
 
 
-def test_gaussian_filter_and_smoother_equal_the_joint_normal():
+@pytest.mark.parametrize(
+    ("wear_reset", "drift0_mean"), [(1.0, 0.0), (0.0, 0.0), (1.0, 0.4 * UM), (0.5, -0.2 * UM)]
+)
+def test_gaussian_filter_and_smoother_equal_the_joint_normal(wear_reset, drift0_mean):
     u = np.array([1.0, 1.5, 0.8, 1.2]) * UM
     y = np.array([3.0, 4.5, 14.0, 15.5]) * UM
     declared = np.array([False, False, True, False])
-    m = _gaussian()
-    lev, ys = _joint(m, u, declared)
+    m = _gaussian(wear_reset=wear_reset, drift0_mean=drift0_mean)
+    lev, ys, mean = _joint(m, u, declared)
     tr = track(y, u, model=m, tool_changes=(2,))
     loglik = 0.0
     for k in range(4):
-        pm, pv = _condition(ys[k : k + 1], ys, y, list(range(k)))
-        assert tr.pred_mean[k] == pytest.approx(pm[0], abs=1e-12)
-        assert tr.pred_sd[k] == pytest.approx(math.sqrt(pv[0]), rel=1e-9)
-        loglik += -0.5 * (math.log(2 * math.pi * pv[0]) + (y[k] - pm[0]) ** 2 / pv[0])
-        fm, fv = _condition(lev[k : k + 1], ys, y, list(range(k + 1)))
-        assert tr.level[k] == pytest.approx(fm[0], abs=1e-12)
-        assert tr.level_sd[k] == pytest.approx(math.sqrt(fv[0]), rel=1e-9)
-        sm, sv = _condition(lev[k : k + 1], ys, y, [0, 1, 2, 3])
-        assert tr.smooth_level[k] == pytest.approx(sm[0], abs=1e-12)
-        assert tr.smooth_level_sd[k] == pytest.approx(math.sqrt(sv[0]), rel=1e-7)
-    nm, nv = _condition(lev[4:5], ys, y, [0, 1, 2, 3])
-    assert tr.next_mean == pytest.approx(nm[0], abs=1e-12)
-    assert tr.next_sd == pytest.approx(math.sqrt(nv[0]), rel=1e-9)
+        pm, pv = _cond(ys[k : k + 1], ys, y, list(range(k)), mean[k], mean)
+        assert tr.pred_mean[k] == pytest.approx(pm, abs=1e-12)
+        assert tr.pred_sd[k] == pytest.approx(math.sqrt(pv), rel=1e-9)
+        loglik += -0.5 * (math.log(2 * math.pi * pv) + (y[k] - pm) ** 2 / pv)
+        fm, fv = _cond(lev[k : k + 1], ys, y, list(range(k + 1)), mean[k], mean)
+        assert tr.level[k] == pytest.approx(fm, abs=1e-12)
+        assert tr.level_sd[k] == pytest.approx(math.sqrt(fv), rel=1e-9)
+        sm, sv = _cond(lev[k : k + 1], ys, y, [0, 1, 2, 3], mean[k], mean)
+        assert tr.smooth_level[k] == pytest.approx(sm, abs=1e-12)
+        assert tr.smooth_level_sd[k] == pytest.approx(math.sqrt(sv), rel=1e-7)
+    nm, nv = _cond(lev[4:5], ys, y, [0, 1, 2, 3], mean[4], mean)
+    assert tr.next_mean == pytest.approx(nm, abs=1e-12)
+    assert tr.next_sd == pytest.approx(math.sqrt(nv), rel=1e-9)
     assert tr.loglik == pytest.approx(loglik, rel=1e-9)
     assert tr.steps == (2,) and tr.tool_changes == (2,)
     # the 95 % predictive interval of a Gaussian model is mean ± 1.96 sd
     assert tr.pred_hi[1] == pytest.approx(tr.pred_mean[1] + 1.959964 * tr.pred_sd[1], rel=1e-5)
+
+
+def _exact_mixture(m, u, y):
+    """Log marginal likelihood, next level's mean and p(step at k | all parts) summed
+    over all 3^n indicator sequences, each sequence's run a joint normal."""
+    n = len(y)
+    pri = np.array([1 - m.step_prob - m.outlier_prob, m.outlier_prob, m.step_prob])
+    logw, means, steps = [], [], []
+    for seq in itertools.product(range(3), repeat=n):
+        lev, ys, mean = _joint(m, u, np.zeros(n, bool), steps=[k for k in range(n) if seq[k] == 2],
+                               odd=[k for k in range(n) if seq[k] == 1])  # fmt: skip
+        cov = ys @ ys.T
+        r = y - mean[:n]
+        ll = -0.5 * (n * math.log(2 * math.pi) + np.linalg.slogdet(cov)[1]
+                     + r @ np.linalg.solve(cov, r))  # fmt: skip
+        logw.append(np.sum(np.log(pri[list(seq)])) + ll)
+        means.append(mean[n] + (lev[n] @ ys.T) @ np.linalg.solve(cov, r))
+        steps.append([s == 2 for s in seq])
+    logw = np.array(logw)
+    top = logw.max()
+    w = np.exp(logw - top)
+    return top + math.log(w.sum()), float(w @ means) / w.sum(), w @ np.array(steps) / w.sum()
+
+
+@pytest.mark.parametrize("y", [[0, 0.5, 4.0, 3.2, 4.5, 3.0, 4.1], [1, 0, 0.5, 5.0, 4.0, 1.0, 0.5]])
+def test_the_collapsed_filter_is_close_to_the_exact_mixture(y):
+    """Against all 3^7 indicator sequences: a step or two odd parts that one part of
+    hindsight cannot tell apart. With `STEP_MEMORY` parts of hindsight the filter's
+    evidence, next level and step probabilities are those of the exact mixture; merging
+    after one part (GPB2, memory 1) is off by more."""
+    m = TrackModel(level_sd=0.0, drift_sd=0.0, scatter_sd=1.0 * UM, step_sd=8 * UM,
+                   step_prob=0.05, outlier_prob=0.05, outlier_scale=20 * UM, drift0_sd=0.0,
+                   level0_sd=5 * UM)  # fmt: skip
+    y = np.array(y) * UM
+    u = np.full(y.size, UM)
+    loglik, next_mean, p_step = _exact_mixture(m, u, y)
+    err = {}
+    for memory in (1, STEP_MEMORY):
+        out = mixture_filter(y[None], (u**2)[None], _params((m,)), np.zeros(y.size, bool),
+                             memory=memory)  # fmt: skip
+        err[memory] = (abs(out["loglik"][0].sum() - loglik),
+                       abs(out["next_m"][0] - next_mean) / UM,
+                       np.max(np.abs(out["p_lag"][0, :, 2] - p_step)))  # fmt: skip
+    assert err[STEP_MEMORY][0] < 0.005 and err[STEP_MEMORY][1] < 0.005
+    assert err[STEP_MEMORY][2] < 0.015
+    assert err[1][0] > 0.1 and err[1][2] > 0.2
+
+
+def test_a_declared_tool_change_restarts_the_wear():
+    """Wear 0.5 µm/part, a new edge at part 20 set 3 µm lower: the level of part 20 is
+    about 3 - 20 x 0.5 = -7 µm below the old trend's prediction (the wear of the old
+    edge goes with it), which `wear_reset = 0` (a step only) would not expect."""
+    rng = np.random.default_rng(9)
+    k = np.arange(30)
+    level = 0.5 * np.where(k < 20, k, k - 20) - 3.0 * (k >= 20)
+    y = (level + rng.normal(0, 0.8, 30)) * UM
+    m = TrackModel(level_sd=0.0, drift_sd=0.0, scatter_sd=0.5 * UM, step_sd=8 * UM,
+                   step_prob=0.0, outlier_prob=0.0, drift0_sd=0.5 * UM)  # fmt: skip
+    new = track(y[:20], UM, model=m)
+    assert new.next_mean == pytest.approx(10 * UM, abs=1 * UM)
+    full = track(y, UM, model=m, tool_changes=(20,))
+    assert full.pred_mean[20] == pytest.approx(0.0, abs=1 * UM)  # 10 - 20 x 0.5
+    kept = track(y, UM, model=replace(m, wear_reset=0.0), tool_changes=(20,))
+    assert kept.pred_mean[20] == pytest.approx(10 * UM, abs=1 * UM)
+
+
+def test_the_grid_prior():
+    """The drift of the grid: none (1/2), wear of the edge, which only leaves material,
+    a half-normal rate of scale 0.3 µm/part by its mean and sd (7/16), either sign
+    (1/16)."""
+    w = np.exp(GRID_LOG_PRIOR)
+    assert w.sum() == pytest.approx(1.0) and len(w) == len(HYPER_GRID)
+
+    def share(pick):
+        return sum(wi for wi, g in zip(w, HYPER_GRID, strict=True) if pick(g))
+
+    assert share(lambda g: g.drift0_sd == 0) == pytest.approx(0.5)
+    assert share(lambda g: g.drift0_mean > 0) == pytest.approx(7 / 16)
+    wear = next(g for g in HYPER_GRID if g.drift0_mean > 0)
+    assert wear.drift0_mean == pytest.approx(0.3 * UM * math.sqrt(2 / math.pi))
+    assert wear.drift0_sd == pytest.approx(0.3 * UM * math.sqrt(1 - 2 / math.pi))
+    assert share(lambda g: g.step_prob < 0.01) == pytest.approx(0.5)
+    assert all(g.drift_sd == 0 and g.wear_reset == 1 for g in HYPER_GRID)
 
 
 def test_diffuse_start_is_the_limit_of_a_wide_prior():
