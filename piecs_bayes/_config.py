@@ -20,6 +20,7 @@ import hashlib
 import json
 import os
 import threading
+import time
 from pathlib import Path
 
 import jax
@@ -74,6 +75,22 @@ def _export_path(name: str, key, packages) -> Path | None:
     return _cache_dir().parent / "export" / f"{name}-{digest}.bin"
 
 
+#: persisted traces neither read nor written for this many days are removed when a
+#: new trace is written (a stale one, of older sources or versions, is never read again)
+EXPORT_MAX_AGE_DAYS = 30
+
+
+def _prune_exports(folder: Path) -> None:
+    """Remove the traces in `folder` unused for `EXPORT_MAX_AGE_DAYS` (best effort)."""
+    cutoff = time.time() - EXPORT_MAX_AGE_DAYS * 86400.0
+    for old in folder.glob("*.bin"):
+        try:
+            if old.stat().st_mtime < cutoff:
+                old.unlink()
+        except OSError:  # gone already, or not ours to remove
+            pass
+
+
 def persisted(name: str, key, build, packages: tuple[str, ...] = ()) -> tuple:
     """`(compiled function, meta)` of a traced program, kept across processes.
 
@@ -85,7 +102,8 @@ def persisted(name: str, key, build, packages: tuple[str, ...] = ()) -> tuple:
     whose code the trace runs; default all: `source_hash`). A
     missing, unreadable or stale file is traced again (and rewritten); with
     ``PIECS_BAYES_NO_CACHE=1`` nothing is read or written. The function returned
-    runs the exported program (the same on the first and later runs).
+    runs the exported program (the same on the first and later runs). A trace read
+    is touched; writing one removes those unused for `EXPORT_MAX_AGE_DAYS`.
     """
     from jax import export
 
@@ -96,6 +114,10 @@ def persisted(name: str, key, build, packages: tuple[str, ...] = ()) -> tuple:
             n = int.from_bytes(blob[:8], "little")
             meta = json.loads(blob[8 : 8 + n].decode())
             exported = export.deserialize(bytearray(blob[8 + n :]))
+            try:
+                os.utime(path)  # in use: kept by `_prune_exports`
+            except OSError:
+                pass
             return jax.jit(exported.call), meta
         except Exception:  # noqa: BLE001 - stale or corrupt: trace again, below
             pass
@@ -109,6 +131,7 @@ def persisted(name: str, key, build, packages: tuple[str, ...] = ()) -> tuple:
             tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
             tmp.write_bytes(blob)
             os.replace(tmp, path)
+            _prune_exports(path.parent)
         except (OSError, ImportError):  # read-only cache, or no flatbuffers: not kept
             pass
     return jax.jit(exported.call), meta

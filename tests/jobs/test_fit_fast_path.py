@@ -149,6 +149,36 @@ def test_the_trace_is_persisted_and_a_broken_file_is_traced_again(tmp_path, monk
     assert len(calls) == 4 and len(list(files[0].parent.glob("unit_test-*.bin"))) == 2
 
 
+def test_traces_unused_for_long_are_pruned_when_one_is_written(tmp_path, monkeypatch):
+    pytest.importorskip("flatbuffers")
+    import os
+    import time
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.delenv("PIECS_BAYES_NO_CACHE", raising=False)
+    folder = tmp_path / "piecs_bayes" / "export"
+    folder.mkdir(parents=True)
+    days = 86400.0 * _config.EXPORT_MAX_AGE_DAYS
+    stale, recent = folder / "part_fit-stale.bin", folder / "part_fit-recent.bin"
+    for f, age in ((stale, days + 3600), (recent, days - 3600)):
+        f.write_bytes(b"x")
+        os.utime(f, (time.time() - age, time.time() - age))
+
+    def build():
+        import jax
+        import jax.numpy as jnp
+
+        return jax.jit(lambda x: jnp.sum(x)), (jax.ShapeDtypeStruct((2,), float),), {}
+
+    _config.persisted("unit_test", ("prune", 1), build, packages=("fit",))
+    assert not stale.exists() and recent.exists()
+    [new] = folder.glob("unit_test-*.bin")
+    os.utime(new, (time.time() - days - 3600,) * 2)  # old, but read again: touched, kept
+    _config.persisted("unit_test", ("prune", 1), build, packages=("fit",))
+    _config.persisted("unit_test", ("prune", 2), build, packages=("fit",))  # a write
+    assert new.exists() and len(list(folder.glob("unit_test-*.bin"))) == 2
+
+
 def test_unknown_solver_is_refused():
     study = load_study(DEMO)
     probe = load_probe_data(study)
