@@ -4,7 +4,6 @@
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -12,9 +11,9 @@ import numpy as np
 from ..errors import AnalysisError, InputError
 from ..geometry import Profile
 from ._features import FeatureFit, _surface_and_nominal
-from ._least_squares import ravel
+from ._least_squares import flat_structure
 from ._lsq_core import is_linear
-from ._lsq_result import LsqResult, param_names, result_from_arrays
+from ._lsq_result import LsqResult, result_from_arrays
 from ._lsq_types import COV_OK, Status
 from ._profile_result import ProfileFit
 from ._sigma import DECLARED_DOF, probe_sigma, sigma_arrays
@@ -256,7 +255,7 @@ class BatchFit:
     def _result(self, g: Group, row: int, robust: bool | None = None) -> LsqResult:
         """The `LsqResult` that `least_squares` builds from the same arrays."""
         arr = {k: v[row] for k, v in g.arrays.items()}
-        names, unravel = _flat_structure(len(g.free))
+        names, unravel = flat_structure(len(g.free))
         return result_from_arrays(
             arr,
             params=np.asarray(arr["params_flat"]),
@@ -405,14 +404,6 @@ class BatchFit:
         if len(bad) > 10:
             lines.append(f"  ... and {len(bad) - 10} more")
         return "\n".join(lines)
-
-
-@functools.lru_cache(maxsize=8)
-def _flat_structure(p: int):
-    """Names and `unravel` of `p` flat parameters (as `least_squares` makes them from
-    its start `jnp.zeros(p)`), made once: building them takes eager JAX operations."""
-    y0 = np.zeros(p)
-    return param_names(y0), ravel(y0)[1]
 
 
 def inlier_ss(g: Group, rows=slice(None)) -> tuple[np.ndarray, np.ndarray]:

@@ -19,6 +19,7 @@ result), `_lsq_solver` (the optimistix solvers and their status mapping),
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -210,6 +211,14 @@ def ravel(tree):
     leaves, treedef = jax.tree_util.tree_flatten(tree)
     flat = jnp.concatenate([jnp.ravel(jnp.asarray(x, float)) for x in leaves])
     return flat, _Unravel(treedef, tuple(tuple(np.shape(x)) for x in leaves))
+
+
+@functools.lru_cache(maxsize=8)
+def flat_structure(p: int):
+    """Names and `unravel` of `p` flat parameters (as `least_squares` makes them from
+    its start `jnp.zeros(p)`), made once: building them takes eager JAX operations."""
+    y0 = np.zeros(p)
+    return param_names(y0), ravel(y0)[1]
 
 
 @dataclasses.dataclass(frozen=True)

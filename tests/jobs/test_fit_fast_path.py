@@ -111,6 +111,43 @@ def test_input_errors_are_the_loops():
     assert "2 point(s) are too few for a line" in str(fast.value)
 
 
+def test_a_layout_is_planned_once_and_only_for_itself():
+    """Parts of one layout share a plan (`fit._part_fit`): a part fitted after another
+    is what it is fitted alone; another layout (points in another order, one point
+    fewer, a parameter fixed) gets its own plan and the loop's results; an input error
+    is raised again on every call (nothing of a refused part is kept)."""
+    from piecs_bayes.fit import _part_fit
+
+    study = load_study(BATCH)
+    files = sorted(study.path.parent.glob("part*.csv"))[:3]
+    probe = load_probe_data(study, files)
+    parts = [probe.for_part(p) for p in probe.parts]
+    _part_fit._PLANS.clear()
+    after = [fit_study(study, one) for one in parts]
+    assert len(_part_fit._PLANS) == 1  # the batch parts share their layout
+    for one, fit in zip(parts, after, strict=True):
+        _part_fit._PLANS.clear()
+        alone = fit_study(study, one)
+        for fid, a in alone.fits.items():
+            for name in ("values", "covariance", "residuals", "weights", "error_vectors",
+                         "nominal_points", "points", "lines", "outliers"):  # fmt: skip
+                np.testing.assert_array_equal(getattr(fit[fid], name), getattr(a, name))
+        assert fit.sigma == alone.sigma
+    rng = np.random.default_rng(16)
+    one = parts[1]
+    shuffled = one.select(rng.permutation(len(one)))
+    fewer = one.select(np.arange(len(one)) != np.flatnonzero(one.feature == "fillet")[0])
+    fixed = replace(study, fit=replace(study.fit, fix=("fillet.radius",)))
+    for s, data in ((study, shuffled), (study, fewer), (fixed, one)):
+        _assert_same_fit(_loop(s, data, "robust"), fit_study(s, data))
+    assert len(_part_fit._PLANS) == 4
+    short = one.select(~np.isin(np.arange(len(one)), np.flatnonzero(one.feature == "face_end")[2:]))
+    for _ in range(2):
+        with pytest.raises(InputError, match="too few for a line"):
+            fit_study(study, short)
+    assert len(_part_fit._PLANS) == 4
+
+
 def test_the_trace_is_persisted_and_a_broken_file_is_traced_again(tmp_path, monkeypatch):
     pytest.importorskip("flatbuffers")  # jax.export's serialisation needs it
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
