@@ -16,7 +16,8 @@ class InputError(PiecsError, ValueError):
 
     - `message`: what is wrong and what was expected.
     - `file`, `line`, `column`, `feature`, `value`: where, when known. They are
-      kept as attributes and prefixed to the message as ``file:line: column 'c':``.
+      kept as attributes and prefixed to the message as ``file:line: column 'c':``
+      (more than three files, comma-joined, as the first, the last and a count).
     """
 
     def __init__(
@@ -37,7 +38,8 @@ class InputError(PiecsError, ValueError):
         self.reason = message
         where = []
         if file is not None:
-            where.append(f"{file}:{line}" if line is not None else str(file))
+            shown = _files(str(file))
+            where.append(f"{shown}:{line}" if line is not None else shown)
         elif line is not None:
             where.append(f"line {line}")
         if column is not None:
@@ -46,6 +48,14 @@ class InputError(PiecsError, ValueError):
             where.append(f"feature {feature!r}")
         prefix = ", ".join(where)
         super().__init__(f"{prefix}: {message}" if prefix else message)
+
+
+def _files(file: str) -> str:
+    """`file` as a message shows it: the probe files of a run (joined by commas,
+    `jobs.load_probe_data`) as the first, the last and how many; the `file`
+    attribute keeps them all."""
+    names = file.split(",")
+    return file if len(names) <= 3 else f"{names[0]}, ..., {names[-1]} ({len(names)} files)"
 
 
 class AnalysisError(PiecsError, RuntimeError):

@@ -278,6 +278,11 @@ def test_probe_classes(capsys, demo_copy):
     assert rc == 2 and "2 parts (a, b)" in text and "--part" in text, text
     rc, text = _run(capsys, ["fit", study, "-q", "--part", "b", "--out", demo_copy / "o_multi"])
     assert rc == 0, text
+    # a run of 36 files, no --part: the files as the first, the last and a count
+    batch = Path(__file__).resolve().parents[2] / "data" / "batch" / "study.toml"
+    rc, text = _run(capsys, ["fit", batch, "-q", "--out", demo_copy / "o_batch"])
+    assert rc == 2 and "part01.csv, ..., " in text and "part36.csv (36 files): " in text, text
+    assert "the probe data hold 36 parts" in text and len(text) < 400, text
 
 
 def test_command_line_numbers_and_file_system_faults(capsys, demo_copy):
