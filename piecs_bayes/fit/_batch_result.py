@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import AnalysisError, InputError
 from ..geometry import Profile
-from ._features import FeatureFit, _surface_and_nominal
+from ._features import FeatureFit, _surface_and_nominal, embed_free
 from ._least_squares import flat_structure
 from ._lsq_core import is_linear
 from ._lsq_result import LsqResult, result_from_arrays
@@ -298,18 +298,9 @@ class BatchFit:
             pts_idx = self.order[start : start + n]
             centres = self.centres[pts_idx]
             res = self._result(g, row, robust)
-            cov = res.covariance
-            if len(g.free) == f.nparams:
-                values = np.array(res.params, dtype=float)
-                if cov is not None:
-                    cov = cov * factor2  # as `scale_fits` scales the loop's
-            else:
-                values = np.zeros(f.nparams)
-                values[list(g.free)] = res.params
-                if cov is not None:
-                    full = np.zeros((f.nparams, f.nparams))
-                    full[np.ix_(g.free, g.free)] = cov
-                    cov = full * factor2
+            values, cov = embed_free(f.nparams, g.free, res.params, res.covariance)
+            if cov is not None:
+                cov = cov * factor2  # as `scale_fits` scales the loop's
             known = None if self.surfaces is None else self.surfaces.get((i, j))
             if known is not None:
                 surface, nominal = known[0][:n], known[1][:n]

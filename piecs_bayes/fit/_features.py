@@ -33,6 +33,7 @@ from ._lsq_result import LsqResult
 __all__ = [
     "FeatureFit",
     "arc_distance",
+    "embed_free",
     "feature_residuals",
     "fit_feature",
     "geometry_args",
@@ -253,12 +254,7 @@ def fit_feature(
         sigma=sigma,
         throw=throw,
     )
-    values = np.zeros(feature.nparams)
-    values[free] = np.asarray(res.params)
-    cov = None
-    if res.covariance is not None:
-        cov = np.zeros((feature.nparams, feature.nparams))
-        cov[np.ix_(free, free)] = np.asarray(res.covariance)
+    values, cov = embed_free(feature.nparams, free, res.params, res.covariance)
     se = None if cov is None else np.sqrt(np.diag(cov))
     surface, nominal = map(
         np.asarray, _surface_and_nominal(feature, centres, values, float(ball_radius))
@@ -281,6 +277,19 @@ def fit_feature(
         result=res,
         fixed=tuple(fix),
     )
+
+
+def embed_free(nparams: int, free, params, cov=None):
+    """Values `(nparams,)` and covariance `(nparams, nparams)` (or None) over all of
+    a feature's parameters from those of its `free` ones (fixed ones 0)."""
+    free = list(free)
+    values = np.zeros(nparams)
+    values[free] = np.asarray(params)
+    if cov is None:
+        return values, None
+    full = np.zeros((nparams, nparams))
+    full[np.ix_(free, free)] = np.asarray(cov)
+    return values, full
 
 
 def _free_parameters(feature: Feature, fix: Sequence[str]) -> list[int]:

@@ -24,7 +24,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import Profile
-from ._features import FeatureFit, _check_point_count, _free_parameters, padded_size
+from ._features import (
+    FeatureFit,
+    _check_point_count,
+    _free_parameters,
+    embed_free,
+    padded_size,
+)
 from ._least_squares import flat_structure
 from ._lsq_result import result_from_arrays
 from ._lsq_types import Status
@@ -183,12 +189,9 @@ def _feature_fits(plan, flat, arrays, centres, lines, factor2, loss, method) -> 
             values = np.array(res.params, dtype=float)
             if res.covariance is not None:
                 cov, se = covs[row], ses[row]
-        else:
-            values = np.zeros(f.nparams)
-            values[list(g.free)] = res.params
-            if res.covariance is not None:
-                cov = np.zeros((f.nparams, f.nparams))
-                cov[np.ix_(g.free, g.free)] = res.covariance
+        else:  # fixed parameters: zeros in the values and the covariance
+            values, cov = embed_free(f.nparams, g.free, res.params, res.covariance)
+            if cov is not None:
                 cov = cov * factor2
                 se = np.sqrt(np.diag(cov))
         fits[f.id] = FeatureFit(
