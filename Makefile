@@ -1,5 +1,5 @@
 # Every target sets itself up: a .venv built from pyproject.toml, at the exact
-# versions of constraints.txt (the golden outputs are byte-identical only with them).
+# versions of constraints.txt (a run repeats to the last bit only with them).
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin

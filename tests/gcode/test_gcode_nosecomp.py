@@ -233,7 +233,7 @@ def test_radius_error_correction_of_a_resolved_program():
         ("g04_step_shorter_than_nose.ngc", 9),
         ("g05_entry_arc_too_short.ngc", 6),
         ("g06_arc_in_concave_corner.ngc", 9),
-        ("g07_arc_to_line_corner.ngc", 9),
+        ("g07_arc_to_line_corner.ngc", 11),
     ],
 )
 def test_gouges_raise_with_their_line(name, line, tools):

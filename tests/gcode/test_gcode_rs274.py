@@ -130,3 +130,17 @@ def test_extend_outputs_run_in_rs274(path, tools):
     assert len(ours.moves) == len(result.path)
     for m, a in zip(result.path, ours.moves, strict=True):
         assert np.max(np.abs(np.subtract(m.end, a.end))) <= half
+
+
+def test_a_program_with_both_faults_names_the_side_first(tools):
+    """G42 on the material side and a gouge further on: rs274 judges gouges only and
+    stops at the corner; we name the side, the fault a machinist must fix first (on
+    the other side every concave corner is convex and the gouge is another one)."""
+    from piecs_bayes.errors import InputError
+
+    path = DATA / "faults" / "side_and_gouge.ngc"
+    reference = run_rs274(path, tool_table=TABLE)
+    assert reference.error is not None
+    with pytest.raises(InputError) as exc:
+        nose_compensate(read_gcode(path), tool_table=tools)
+    assert "material side" in str(exc.value) and "G42 (line 6)" in str(exc.value)

@@ -1,4 +1,4 @@
-"""`piecs-bayes simulate batch`: the shipped run is reproduced byte for byte, and
+"""`piecs-bayes simulate batch`: the shipped run is reproduced to the precision it prints, and
 `--points` / `--parts` make dense and long runs anyone can regenerate."""
 
 from __future__ import annotations
@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from golden import Deterministic, compare_text_file
 
 from piecs_bayes.cli import main
 from piecs_bayes.io import load_study
@@ -21,8 +22,12 @@ def test_the_default_run_is_the_shipped_data(tmp_path):
     write_batch(tmp_path)
     shipped = sorted(p.name for p in BATCH.iterdir() if p.is_file())
     assert sorted(p.name for p in tmp_path.iterdir()) == shipped
+    # at the precision the files print (the CSVs' 5 decimals: one unit of the last
+    # digit), truth.json within 1e-12 relative: XLA's last bits differ between CPUs
     for name in shipped:
-        assert (tmp_path / name).read_bytes() == (BATCH / name).read_bytes(), name
+        want, got = (BATCH / name).read_text(), (tmp_path / name).read_text()
+        base = Deterministic(rtol=1e-12 if name.endswith(".json") else 0.0, atol=0.0)
+        assert compare_text_file(name, want, got, base=base) == [], name
 
 
 def test_dense_long_run_points_names_and_tool_changes(tmp_path):
