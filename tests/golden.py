@@ -200,7 +200,10 @@ class MonteCarlo:
 #: kurtosis up to 2); a 2.5 % or 97.5 % quantile sqrt(p(1-p))/phi(z_p) = 2.7, taken
 #: as 3; a simultaneous band limit (centre +- crit * sd) sqrt(1 + crit^2/2 +
 #: se(crit)^2 ESS) ~ 3 for crit ~ 3, taken as 4; a correlation (1 - rho^2) with s = 1;
-#: a covariance sqrt(1 + rho^2) <= 1.5 with s = sqrt(c_ii c_jj); a critical value of
+#: a covariance sqrt(1 + rho^2) for normal draws with s = sqrt(c_ii c_jj), taken as
+#: 2 sqrt((1 + rho^2) / 2) (a variance is an sd squared: twice the sd's relative
+#: error, with the sd's allowance for kurtosis; an independent seed moved a
+#: variance by 4.1 normal-theory standard errors); a critical value of
 #: the maximum over the path 2 with s = 1 (the density of max |Z| at its 95 % quantile
 #: is ~0.15, sqrt(0.05 * 0.95) / 0.15 = 1.5)
 MC_FACTORS = {
@@ -209,7 +212,7 @@ MC_FACTORS = {
     "quantile": 3.0,
     "simultaneous": 4.0,
     "corr": 1.0,
-    "cov": 1.5,
+    "cov": 2.0,
     "crit": 2.0,
 }
 
@@ -253,7 +256,7 @@ def _mc_json(path: tuple, value: float, root) -> MonteCarlo | None:
         c = mc["vertex_cov"][i]
         s = math.sqrt(abs(c[j][j] * c[k][k]))
         rho2 = value**2 / (s * s) if s > 0 else 0.0
-        return MonteCarlo(math.sqrt(1 + rho2), s, "covariance")
+        return MonteCarlo(MC_FACTORS["cov"] * math.sqrt((1 + rho2) / 2), s, "covariance")
     if key == "band" and path[3] == "crit_simultaneous":
         return MonteCarlo(MC_FACTORS["crit"], 1.0, "critical value")
     if key == "band" and path[3] == "max_half_width_simultaneous":
