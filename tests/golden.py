@@ -77,6 +77,8 @@ PACKAGES = ("jax", "jaxlib", "numpy", "scipy", "emcee", "optimistix", "equinox",
 REPORTS = {"report.html": "report.html.txt", "report.pdf": "report.pdf.txt"}
 CONTAINERS = {"posterior.nc": "posterior.nc.json"}
 BINARY = set(REPORTS) | set(CONTAINERS)
+#: recorded fixture -> the output it stands for
+_SOURCE = {v: k for k, v in {**REPORTS, **CONTAINERS}.items()}
 
 RTOL = 5e-7
 ATOL = 1e-9
@@ -629,7 +631,7 @@ def compare(name: str, actual: Path) -> list[str]:
     ess_now = min((container_ess(s) for s in summaries.values()), default=math.inf)
     ess = (manifest.get("ess", math.inf), ess_now)
     for fname in manifest["files"]:
-        source = next((k for k, v in {**REPORTS, **CONTAINERS}.items() if v == fname), fname)
+        source = _SOURCE.get(fname, fname)
         got = actual / source
         if not got.exists():
             problems.append(f"{source}: not written")
