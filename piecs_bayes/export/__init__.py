@@ -61,3 +61,8 @@ from ._tables import path_csv as path_csv
 from ._tables import posterior_csv as posterior_csv
 from ._tables import residuals_csv as residuals_csv
 from ._tables import to_csv as to_csv
+from ._plan_files import GAUGING_NAMES as GAUGING_NAMES
+from ._plan_files import plan_figure as plan_figure
+from ._plan_files import plan_json as plan_json
+from ._plan_files import plan_program as plan_program
+from ._plan_files import write_plan as write_plan

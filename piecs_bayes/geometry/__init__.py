@@ -1,6 +1,12 @@
 """Geometry of turned profiles: pure, differentiable JAX functions; no files, no fits."""
 
 from .. import _config  # noqa: F401  (float64 before any JAX array)
+from ._clearance import CHORD_ERROR_MM as CHORD_ERROR_MM
+from ._clearance import ball_centres as ball_centres
+from ._clearance import feature_polyline as feature_polyline
+from ._clearance import path_distance as path_distance
+from ._clearance import point_distance as point_distance
+from ._clearance import probe_window as probe_window
 from ._curves import Arc as Arc
 from ._curves import Feature as Feature
 from ._curves import Line as Line

@@ -9,6 +9,7 @@ the length scale to millimetres.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -21,7 +22,8 @@ __all__ = ["JOB_KEYS", "read_job_section", "read_plausibility", "read_program_se
 
 # Keys of the job sections read by piecs_bayes.decisions (see docs/formats.md):
 # (kind, bounds) with kind "length" (converted to mm), "number", "int", "bool",
-# "choice" (bounds = options), "ids" (feature ids of the profile); bounds are
+# "choice" (bounds = options), "ids" (feature ids of the profile), "words" (G-code
+# words written into a program), "name" (a file name); bounds are
 # (low, high, low_open, high_open), None = unbounded. Defaults live where the
 # settings are used (DecisionSettings, OffsetSettings, decisions.py).
 _GE0 = (0.0, None, False, False)
@@ -79,7 +81,26 @@ JOB_KEYS: dict[str, dict[str, tuple]] = {
         "points_per_feature": ("int", (2, 256, False, False)),
         "machine_units": ("choice", ("mm", "inch")),
     },
+    "plan": {
+        "points": ("int", (1, 200, False, False)),
+        "ratio": ("number", _GT0),
+        "clearance": ("length", _GT0),
+        "end_clearance": ("length", _GE0),
+        "overtravel": ("length", _GT0),
+        "spacing": ("length", _GT0),
+        "inside_share": ("number", (0.0, 0.5, False, False)),
+        "rapid_feed": ("length", _GT0),
+        "controller": ("choice", ("linuxcnc", "fanuc")),
+        "x_mode": ("choice", ("diameter", "radius")),
+        "probe_on": ("words", None),
+        "probe_off": ("words", None),
+        "probe_file": ("name", None),
+        "program_number": ("int", (1, 9999, False, False)),
+    },
 }
+#: G-code words as a `words` value is written into a program (`M64 P0`, `M19`)
+_WORDS = re.compile(r"[A-Z][+-]?[0-9]+(\.[0-9]+)?( [A-Z][+-]?[0-9]+(\.[0-9]+)?)*")
+_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
 
 
 def _bounds_text(b) -> str:
@@ -118,6 +139,16 @@ def read_job_section(r: Reader, tree: dict, name: str, scale: float, profile: Pr
                     f"unknown value {val!r}; expected one of {', '.join(map(repr, bounds))}",
                     value=val,
                 )
+            out[key] = val
+            continue
+        if kind in ("words", "name"):
+            pattern, what = (
+                (_WORDS, "G-code words such as 'M64 P0'")
+                if kind == "words"
+                else (_NAME, "a file name of letters, digits, '_', '.' and '-'")
+            )
+            if not isinstance(val, str) or pattern.fullmatch(val) is None:
+                raise r.error(path, f"expected {what}, got {val!r}", value=val)
             out[key] = val
             continue
         if kind == "bool":
@@ -216,4 +247,5 @@ def read_program_settings(
         tool_table=table,
         mapping=MappingProxyType(clean),
         tolerance=r.number(tree, "tolerance", "program.", 0.01 / scale, positive=True) * scale,
+        stock=r.number(tree, "stock", "program.", 0.5 / scale, nonneg=True) * scale,
     )

@@ -27,7 +27,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     ),
     "probe": (
         "ball_radius", "ball_radius_u", "repeatability", "repeatability_dof", "x_mode",
-        "pretravel",
+        "pretravel", "tool", "feed",
     ),
     "machine": ("x_centre", "z_offset", "scale_x", "scale_z", "rotation"),
     "uncertainty": (),  # source names: checked with the sources
@@ -36,7 +36,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
         "free_transform", "likelihood", "nu", "bayes_steps", "bayes_walkers", "bayes_ensembles",
     ),
     "compensation": ("gain", "max_correction", "apply"),
-    "program": ("nose_radius", "tool_table", "mapping", "tolerance"),
+    "program": ("nose_radius", "tool_table", "mapping", "tolerance", "stock"),
     "plausibility": ("max_distance", "max_outside", "duplicates"),
 }  # fmt: skip
 

@@ -201,6 +201,16 @@ def read_profile(r: Reader, tree: dict, scale: float) -> Profile:
     return Profile(tuple(make_feature(s, side) for s in specs), tangent_tol_deg=tangent_tol)
 
 
+def _probe_tool(r: Reader, pr: dict) -> int | None:
+    """`[probe] tool`: the probe's tool number (1-99 on a lathe turret), or None."""
+    if "tool" not in pr:
+        return None
+    t = pr["tool"]
+    if isinstance(t, bool) or not isinstance(t, int) or not 1 <= t <= 99:
+        raise r.error("probe.tool", f"expected a tool number 1-99, got {t!r}", value=t)
+    return t
+
+
 def read_probe(r: Reader, tree: dict, scale: float, profile: Profile) -> ProbeSpec:
     """`[probe]`; a concave arc the ball cannot touch is an error."""
     pr = r.table(tree, "probe", "", required=True)
@@ -211,6 +221,8 @@ def read_probe(r: Reader, tree: dict, scale: float, profile: Profile) -> ProbeSp
         x_mode=r.choice(pr, "x_mode", "probe.", ("diameter", "radius"), "diameter"),
         pretravel=r.number(pr, "pretravel", "probe.", 0.0) * scale,
         repeatability_dof=r.number(pr, "repeatability_dof", "probe.", 8.0, nonneg=True),
+        tool=_probe_tool(r, pr),
+        feed=r.number(pr, "feed", "probe.", positive=True) * scale if "feed" in pr else None,
     )
     for f in profile.features:
         if f.kind == "arc" and not f.convex and f.radius <= probe.ball_radius:

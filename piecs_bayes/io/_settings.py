@@ -32,7 +32,9 @@ class ProbeSpec:
     """Touch-trigger probe: ball radius (mm) with its standard uncertainty,
     repeatability sigma (mm), how the probe files write X, pretravel (mm), and the
     degrees of freedom the declared repeatability is worth as a prior for the
-    pooled residual sigma (``repeatability_dof``; 0: no prior; see docs/uncertainty.md)."""
+    pooled residual sigma (``repeatability_dof``; 0: no prior; see docs/uncertainty.md).
+    For the gauging program: the probe's ``tool`` number and its probing ``feed``
+    (mm/min: a calibration holds only at the feed it was made at); None: not given."""
 
     ball_radius: float
     ball_radius_u: float = 0.0
@@ -40,6 +42,8 @@ class ProbeSpec:
     x_mode: str = "diameter"
     pretravel: float = 0.0
     repeatability_dof: float = 8.0
+    tool: int | None = None
+    feed: float | None = None
 
 
 @dataclass(frozen=True)
@@ -82,12 +86,15 @@ class ProgramSettings:
     """How the part program is adjusted: the tool-nose radius (mm) or a LinuxCNC
     tool table for the gouge check, an explicit ``{feature id: (line, ...)}``
     mapping of finish-cut blocks (overrides the mapping by geometry) and the
-    distance (mm) within which a block counts as lying on a feature."""
+    distance (mm) within which a block counts as lying on a feature; ``stock``: the
+    most material the semifinished part may carry beyond the nominal profile (mm),
+    which the gauging program's moves keep clear of."""
 
     nose_radius: float | None = None
     tool_table: Path | None = None
     mapping: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     tolerance: float = 0.01
+    stock: float = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,6 +117,7 @@ class Study:
     capability: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     offsets: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     errspec: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    plan: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     program_settings: ProgramSettings = field(default_factory=ProgramSettings)
     encoding: str = "utf-8"
     plausibility: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))

@@ -63,3 +63,8 @@ from ._results import JobResults as JobResults
 from ._results import package_versions as package_versions
 from ._simulate_finish import FINISH_DEFAULTS as FINISH_DEFAULTS
 from ._simulate_finish import write_finish as write_finish
+from ._plan import PLAN_DEFAULTS as PLAN_DEFAULTS
+from ._plan import FeaturePlan as FeaturePlan
+from ._plan import PlannedPoint as PlannedPoint
+from ._plan import ProbePlan as ProbePlan
+from ._plan import plan_study as plan_study

@@ -1,5 +1,6 @@
 """How sure: the characteristic of a feature (normal deviation and its u), GUM and
-Monte Carlo (JCGM 101) propagation to the adjusted tool path, bands, budgets."""
+Monte Carlo (JCGM 101) propagation to the adjusted tool path, bands, budgets, and
+the design of probe points for the characteristic's uncertainty."""
 
 from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._bands import Bands as Bands
@@ -16,6 +17,12 @@ from ._characteristic import normal_deviation as normal_deviation
 from ._characteristic import normal_deviation_at as normal_deviation_at
 from ._characteristic import normal_deviation_draws as normal_deviation_draws
 from ._characteristic import u_systematic as u_systematic
+from ._design import DesignSettings as DesignSettings
+from ._design import FeaturePrediction as FeaturePrediction
+from ._design import design_fractions as design_fractions
+from ._design import points_for_ratio as points_for_ratio
+from ._design import predict_feature as predict_feature
+from ._design import uniform_fractions as uniform_fractions
 from ._propagate import AdaptiveMCResult as AdaptiveMCResult
 from ._propagate import adaptive_monte_carlo as adaptive_monte_carlo
 from ._propagate import coverage_interval as coverage_interval

@@ -1,0 +1,126 @@
+"""The gauging program: a probe plan's moves as a program the control runs.
+
+Two dialects, one structure:
+
+- **LinuxCNC** (`"linuxcnc"`): G18, G7 or G8 (the study's X mode: X words are
+  diameters or radii), G20/G21 (the study's units), G90, G40, G94 (probing is
+  refused in G95 and with compensation on); the probe selected as a tool
+  (``T<n> M6 G43``), the spindle stopped (``M5``), the probe switched on by the
+  configured words (`probe_on`; none by default: say so in `[plan] probe_on`, e.g.
+  ``M64 P0``), ``(PROBEOPEN <file>)`` ... ``(PROBECLOSE)`` around the probe moves,
+  which are ``G38.2`` toward the surface at the probing feed: LinuxCNC writes one
+  line per touch, in order (X a radius even in G7).
+- **Fanuc** (`"fanuc"`): the same moves with ``G31`` (skip) at ``G98`` (feed per
+  minute), ``POPEN`` / ``DPRNT[X#5061[44]*Z#5062[44]]`` after each skip / ``PCLOS``,
+  the probe as ``T<nn><nn>``; X words as the study's X mode says (a Fanuc control's
+  diameter programming is a setting, not a G-code).
+
+One commented block per point names its feature, fraction and nominal contact
+point. Every move is a rapid (``G0``) except the probe moves; the safe path and the
+order come from the plan (`piecs_bayes.jobs.plan_study`). The traceability comment
+block (version, study SHA-256) heads the program.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from ..errors import InputError
+from ._header import comment_text
+from ._lexer import format_number
+
+__all__ = ["CONTROLLERS", "gauging_program"]
+
+CONTROLLERS = ("linuxcnc", "fanuc")
+MM_PER_INCH = 25.4
+
+
+def _coord(v_mm: float, *, x: bool, diameter: bool, inch: bool, decimals: int) -> str:
+    v = v_mm * (2.0 if (x and diameter) else 1.0) / (MM_PER_INCH if inch else 1.0)
+    return format_number(v, decimals=decimals)
+
+
+def gauging_program(
+    home: tuple[float, float],
+    path: Sequence[tuple[str, tuple[float, float]]],
+    points: Sequence,
+    *,
+    controller: str,
+    units: str,
+    x_mode: str,
+    tool: int,
+    feed_mm_min: float,
+    header: Sequence[str],
+    probe_file: str = "probe_points.txt",
+    probe_on: str | None = None,
+    probe_off: str | None = None,
+    program_number: int = 9001,
+    decimals: int | None = None,
+) -> str:
+    """The program text (module docstring).
+
+    **Arguments:**
+
+    - `home`: the plan's start on the retract line, reached X first, then Z (start the
+      program in front of the part, e.g. at the tool-change position);
+      `path`: the `(kind, end)` moves from there (`"rapid"` or `"probe"`; part frame,
+      mm, radius X).
+    - `points`: the plan's points in the same order as its probe moves (for the
+      comments).
+    - `units`: `"mm"` or `"in"` (of the program), `x_mode`: `"diameter"` or `"radius"`.
+    - `tool`, `feed_mm_min`: the probe's tool number and probing feed.
+    - `header`: the traceability texts (one comment line each).
+    """
+    if controller not in CONTROLLERS:
+        raise InputError(f"controller: got {controller!r}, expected one of {CONTROLLERS}")
+    inch, dia = units == "in", x_mode == "diameter"
+    dec = decimals if decimals is not None else (5 if inch else 4)
+
+    def xz(p):
+        return (
+            f"X{_coord(p[0], x=True, diameter=dia, inch=inch, decimals=dec)} "
+            f"Z{_coord(p[1], x=False, diameter=dia, inch=inch, decimals=dec)}"
+        )
+
+    feed = format_number(feed_mm_min / (MM_PER_INCH if inch else 1.0), decimals=1 if not inch else 3)
+    fanuc = controller == "fanuc"
+    out = ["%"]
+    if fanuc:
+        out.append(f"O{program_number:04d} (PIECS GAUGING)")
+    out += [f"({comment_text(t)})" for t in header]
+    units_g = "G20" if inch else "G21"
+    if fanuc:
+        out.append(f"G18 {units_g} G40 G90 G98")
+        out.append(f"T{tool:02d}{tool:02d} (PROBE)")
+    else:
+        out.append(f"G18 {'G7' if dia else 'G8'} {units_g} G40 G90 G94")
+        out.append(f"T{tool} M6 G43 (probe)")
+    out.append("M5 (spindle stopped before any probe move)")
+    out.append(probe_on if probe_on else "(probe on: no code configured, see [plan] probe_on)")
+    out.append("POPEN" if fanuc else f"(PROBEOPEN {probe_file})")
+    x_home = _coord(home[0], x=True, diameter=dia, inch=inch, decimals=dec)
+    z_home = _coord(home[1], x=False, diameter=dia, inch=inch, decimals=dec)
+    out += [f"G0 X{x_home} (retract line)", f"G0 Z{z_home}"]
+    k = 0
+    for kind, p in path:
+        if kind == "probe":
+            pt = points[k]
+            k += 1
+            c = pt.contact
+            out.append(
+                f"({'P' if fanuc else 'point '}{pt.index} {comment_text(pt.feature)} "
+                f"t={pt.t:.3f} contact {xz(c)})"
+            )
+            if fanuc:
+                out.append(f"G31 {xz(p)} F{feed}")
+                digits = "35" if inch else "44"
+                out.append(f"DPRNT[X#5061[{digits}]*Z#5062[{digits}]]")
+            else:
+                out.append(f"G38.2 {xz(p)} F{feed}")
+        else:
+            out.append(f"G0 {xz(p)}")
+    out.append("PCLOS" if fanuc else "(PROBECLOSE)")
+    out.append(probe_off if probe_off else "(probe off: no code configured, see [plan] probe_off)")
+    out.append("M30")
+    out.append("%")
+    return "\n".join(out) + "\n"

@@ -1,0 +1,127 @@
+"""Where a probe ball can touch a turned profile, and how far a path keeps from it.
+
+A touch-trigger probe's ball of radius $r$ touches the feature at a nominal contact
+point $q$ with its centre at $c = q + r\\,n$ ($n$ the outward normal). A contact point
+is **usable** when
+
+1. the ball at contact keeps at least `end_clearance` from every other feature of
+   the profile (a concave corner or a groove: the ball would touch the neighbour
+   first), and does not cut into the probed feature itself (a concave arc smaller
+   than the ball, a groove narrower than the ball: no point is usable);
+2. it lies at least $r$ + `end_clearance` (along the feature) from an end that is a
+   sharp junction or a free end of the profile (an edge: burrs, chamfers, and a
+   ball that slides off), and at least `end_clearance` from a tangent junction
+   (the ball touches one feature there; rule 1 still holds on a concave fillet).
+
+`probe_window` gives the usable fractions of a feature, the longest run of them:
+a probe plan places its points there. Distances are exact between segments;
+arcs are sampled as polylines with a chord error under 0.1 µm.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._curves import Arc, Feature
+
+__all__ = [
+    "CHORD_ERROR_MM",
+    "ball_centres",
+    "feature_polyline",
+    "path_distance",
+    "point_distance",
+    "probe_window",
+]
+
+#: largest distance of an arc's polyline from the arc (mm)
+CHORD_ERROR_MM = 1e-4
+_WINDOW_SAMPLES = 2001
+
+
+def feature_polyline(f: Feature) -> np.ndarray:
+    """The feature as a polyline `(m, 2)` (lines: the two ends)."""
+    if not isinstance(f, Arc):
+        return np.array([f.p0, f.p1], dtype=float)
+    sweep = f.length / f.radius
+    step = 2.0 * math.acos(max(1.0 - CHORD_ERROR_MM / f.radius, -1.0))
+    m = max(8, int(math.ceil(sweep / max(step, 1e-6))) + 1)
+    return np.asarray(f.point_at(np.linspace(0.0, 1.0, m)), dtype=float)
+
+
+def ball_centres(f: Feature, t, ball_radius: float):
+    """Nominal contact points, outward normals and ball centres at fractions `t`."""
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    q = np.asarray(f.point_at(t), dtype=float)
+    n = np.asarray(f.outward_normal(q), dtype=float)
+    return q, n, q + ball_radius * n
+
+
+def point_distance(p, polyline: np.ndarray) -> np.ndarray:
+    """Distance of each point `(k, 2)` to a polyline `(m, 2)`."""
+    p = np.atleast_2d(np.asarray(p, dtype=float))
+    a, b = polyline[:-1], polyline[1:]
+    d = b - a
+    dd = np.maximum(np.sum(d * d, axis=1), 1e-300)
+    w = p[:, None, :] - a[None]
+    s = np.clip(np.sum(w * d[None], axis=2) / dd[None], 0.0, 1.0)
+    gap = w - s[..., None] * d[None]
+    return np.sqrt(np.min(np.sum(gap * gap, axis=2), axis=1))
+
+
+def _cross(u, v):
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+def path_distance(p0, p1, polyline: np.ndarray) -> float:
+    """Smallest distance between the segment `p0`-`p1` and a polyline (0 where they cross)."""
+    p0, p1 = np.asarray(p0, dtype=float), np.asarray(p1, dtype=float)
+    a, b = polyline[:-1], polyline[1:]
+    r, s = p1 - p0, b - a
+    den = _cross(r[None], s)
+    qp = a - p0[None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = _cross(qp, s) / den
+        u = _cross(qp, r[None]) / den
+    crossing = (den != 0.0) & (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+    if np.any(crossing):
+        return 0.0
+    ends = min(point_distance(np.stack([p0, p1]), polyline))
+    seg = np.stack([p0, p1])
+    back = min(point_distance(polyline, seg))
+    return float(min(ends, back))
+
+
+def probe_window(profile, index: int, ball_radius: float, end_clearance: float):
+    """The usable fractions `(t0, t1)` of feature `index` of `profile` (see the module
+    docstring), or None when the ball cannot touch it anywhere."""
+    f = profile.features[index]
+    t = np.linspace(0.0, 1.0, _WINDOW_SAMPLES)
+    _, _, c = ball_centres(f, t, ball_radius)
+    ok = np.ones(t.size, dtype=bool)
+    for j, g in enumerate(profile.features):
+        poly = feature_polyline(g)
+        d = point_distance(c, poly)
+        if j == index:
+            ok &= d >= ball_radius - 2.0 * CHORD_ERROR_MM  # the chords lie inside the arc
+        else:
+            ok &= d >= ball_radius + end_clearance
+    s = t * f.length
+    n = len(profile.features)
+    junctions = profile.junctions
+    start_kind = junctions[index - 1] if index > 0 else "free"
+    end_kind = junctions[index] if index < n - 1 else "free"
+
+    def margin(kind):
+        return end_clearance if kind == "tangent" else ball_radius + end_clearance
+
+    ok &= s >= margin(start_kind) - 1e-12
+    ok &= f.length - s >= margin(end_kind) - 1e-12
+    if not np.any(ok):
+        return None
+    # the longest run of usable samples
+    edges = np.diff(np.concatenate([[0], ok.astype(int), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    k = int(np.argmax(stops - starts))
+    return float(t[starts[k]]), float(t[stops[k]])

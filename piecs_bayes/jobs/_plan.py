@@ -1,0 +1,331 @@
+"""The probe plan of a study: where to probe every feature, in which order, by which
+moves, and what uncertainty it promises (`plan_study` -> [`ProbePlan`][]).
+
+Per feature (`uncertainty.design_fractions`): the usable window of the ball
+(`geometry.probe_window`: ball radius plus `end_clearance` from sharp ends, the
+ball at contact `end_clearance` from every other feature), then either the given
+count or the least count that reaches the tolerance-to-U ratio (`[plan] ratio`,
+default 4), with the study's probe repeatability, loss, sigma rule and systematic
+sources: the prediction is the one the decision will make (`uncertainty.predict_feature`).
+
+Per point: the nominal contact point $q$, the ball centre at contact $c = q + r n$,
+the approach $-n$; the probe move starts at the stand-off $s = c + (\\text{stock} +
+\\text{clearance})\\,n$ (outside the stock envelope by the clearance) and targets
+$c - \\text{overtravel}\\,n$ (`[plan] overtravel`, beyond the largest plausible
+deviation: more than `[compensation] max_correction`).
+
+**Safe moves.** Between stand-offs the ball keeps at least `clearance` from the
+stock (the nominal profile grown by `[program] stock`): a straight move where it
+does, else out to the retract line (above the largest stock radius for an external
+profile, below the smallest for a bore), along it and back in. A point whose
+stand-off cannot be reached so (an undercut) is refused naming its feature; so is a
+feature the ball cannot touch anywhere (a groove narrower than the ball).
+
+**Order.** Nearest neighbour from the retract line, then 2-opt on the lengths of the
+safe moves: the shortest travel found. **Time**: rapid moves at `[plan] rapid_feed`
+(default 4,000 mm/min), probe moves (stand-off to contact and back) at the
+probing feed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..fit import DECLARED_DOF, normal_variance_factor
+from ..geometry import (
+    CHORD_ERROR_MM,
+    feature_polyline,
+    path_distance,
+    point_distance,
+    probe_window,
+)
+from ..io import parse_fix
+from ..uncertainty import (
+    DesignSettings,
+    FeaturePrediction,
+    design_fractions,
+    points_for_ratio,
+    predict_feature,
+    uniform_fractions,
+)
+from ._options import source_sds
+
+__all__ = ["PLAN_DEFAULTS", "PlannedPoint", "FeaturePlan", "ProbePlan", "plan_study"]
+
+#: `[plan]` defaults (mm, mm/min)
+PLAN_DEFAULTS = {
+    "ratio": 4.0,
+    "clearance": 1.0,
+    "end_clearance": 0.2,
+    "overtravel": 0.5,
+    "spacing": 0.1,
+    "inside_share": 0.2,
+    "rapid_feed": 4000.0,
+    "controller": "linuxcnc",
+    "x_mode": "diameter",
+    "probe_file": "probe_points.txt",
+    "program_number": 9001,
+}
+_MAX_POINTS = 60
+#: mm: a move that keeps the clearance to this much is safe (the polylines of arcs lie
+#: up to CHORD_ERROR_MM inside them)
+_SAFE = 3 * CHORD_ERROR_MM
+
+
+@dataclass(frozen=True)
+class PlannedPoint:
+    """One probe point (part frame, mm, radius X): its place in the program
+    (`index`, from 1), feature and fraction `t`, nominal `contact`, ball `centre` at
+    contact, unit `approach` (into the surface), probe move `start` and `target`,
+    and whether it belongs to the spread share (`inside`)."""
+
+    index: int
+    feature: str
+    t: float
+    contact: tuple[float, float]
+    centre: tuple[float, float]
+    approach: tuple[float, float]
+    start: tuple[float, float]
+    target: tuple[float, float]
+    inside: bool
+
+
+@dataclass(frozen=True)
+class FeaturePlan:
+    """A feature's window (fractions), its designed fractions, and the predicted
+    uncertainty of its characteristic for them and for uniform spacing."""
+
+    feature: str
+    window: tuple[float, float]
+    fractions: tuple[float, ...]
+    designed: FeaturePrediction
+    uniform: FeaturePrediction
+
+
+@dataclass(frozen=True)
+class ProbePlan:
+    """The study's probe plan: points in program order, the safe path between them
+    (`path`: `(kind, end)` with kind `"rapid"` or `"probe"`, starting at `home`),
+    per-feature predictions, settings, and the predicted gauging time (s)."""
+
+    study: object
+    points: tuple[PlannedPoint, ...]
+    features: tuple[FeaturePlan, ...]
+    home: tuple[float, float]
+    path: tuple[tuple[str, tuple[float, float]], ...]
+    settings: dict
+    dof: float
+    time_s: float
+    travel_mm: float
+
+    @property
+    def n_points(self) -> int:
+        return len(self.points)
+
+    def feature(self, fid: str) -> FeaturePlan:
+        return next(f for f in self.features if f.feature == fid)
+
+
+def _settings(study, points, ratio, controller) -> dict:
+    s = {**PLAN_DEFAULTS, **dict(study.plan)}
+    if points is not None:
+        s["points"] = int(points)
+    if ratio is not None:
+        s["ratio"] = float(ratio)
+        s.pop("points", None) if points is None else None
+    if controller is not None:
+        s["controller"] = controller
+    s["stock"] = study.program_settings.stock
+    for key, why in (("tool", "the gauging program selects the probe by it"),
+                     ("feed", "a calibration holds only at the feed it was made at")):  # fmt: skip
+        if getattr(study.probe, key) is None:
+            raise InputError(
+                f"probe.{key}: missing; a probe plan needs it ({why})", file=str(study.path)
+            )
+    max_corr = study.compensation.max_correction
+    if s["overtravel"] <= max_corr:
+        raise InputError(
+            f"plan.overtravel {s['overtravel']:g} mm is not beyond [compensation] "
+            f"max_correction {max_corr:g} mm: a part off by that much would not be touched",
+            file=str(study.path),
+            value=s["overtravel"],
+        )
+    return s
+
+
+def _design_settings(study, dof) -> DesignSettings:
+    loss = study.fit.loss if study.fit.method == "robust" else "linear"
+    return DesignSettings(
+        sigma=study.probe.repeatability,
+        kappa=normal_variance_factor(loss),
+        at=study.decision.get("characteristic", "worst"),
+        sources=tuple(sorted(source_sds(study).items())),
+        dof=dof,
+        coverage_factor=float(study.decision.get("coverage_factor", 2.0)),
+    )
+
+
+def _min_points(study, f) -> int:
+    least = study.fit.min_points_arc if f.kind == "arc" else study.fit.min_points_line
+    return max(int(least), f.nparams + 1)
+
+
+def _windows(study):
+    prof, r = study.profile, study.probe.ball_radius
+    out = {}
+    for i, f in enumerate(prof.features):
+        w = probe_window(prof, i, r, study.plan.get("end_clearance", PLAN_DEFAULTS["end_clearance"]))
+        if w is None:
+            raise InputError(
+                f"the probe ball (radius {r:g} mm) cannot touch feature {f.id!r} anywhere "
+                "keeping the end clearance: a groove or corner narrower than the ball, or a "
+                "feature shorter than the ball's margins",
+                file=str(study.path),
+                feature=f.id,
+            )
+        out[f.id] = w
+    return out
+
+
+def _sigma_dof(study, counts: dict) -> float:
+    if study.fit.known_sigma:
+        return math.inf
+    resid = sum(n - study.profile[fid].nparams for fid, n in counts.items())
+    prior = study.probe.repeatability_dof if study.probe.repeatability_dof else 0.0
+    return float(max(resid, 0) + prior) if resid + prior > 0 else float(DECLARED_DOF)
+
+
+def _feature_designs(study, s, windows, counts):
+    fixed = parse_fix(study.fit.fix)
+    if counts is None:  # the least counts for the ratio, at the dof of the least counts
+        least = {f.id: _min_points(study, f) for f in study.profile.features}
+        ds = _design_settings(study, _sigma_dof(study, least))
+        ds = _with(ds, s)
+        designs = {}
+        for f in study.profile.features:
+            designs[f.id] = points_for_ratio(
+                f, windows[f.id], ds, s["ratio"], n_min=least[f.id], n_max=_MAX_POINTS,
+                fixed=fixed.get(f.id, ()),
+            )  # fmt: skip
+        counts = {fid: len(d[0]) for fid, d in designs.items()}
+    else:
+        designs = None
+    ds = _with(_design_settings(study, _sigma_dof(study, counts)), s)
+    plans = []
+    for f in study.profile.features:
+        fx = fixed.get(f.id, ())
+        if designs is None or len(designs[f.id][0]) != counts[f.id]:
+            ts, inside = design_fractions(f, counts[f.id], windows[f.id], ds, fixed=fx)
+        else:
+            ts, inside = designs[f.id][:2]
+        pred = predict_feature(f, ts, ds, fixed=fx)
+        uni = predict_feature(f, uniform_fractions(len(ts), windows[f.id]), ds, fixed=fx)
+        plans.append((f, ts, inside, FeaturePlan(f.id, windows[f.id], tuple(map(float, ts)), pred, uni)))
+    return plans, ds.dof
+
+
+def _with(ds: DesignSettings, s: dict) -> DesignSettings:
+    from dataclasses import replace
+
+    return replace(ds, inside_share=s["inside_share"], spacing=s["spacing"])
+
+
+def plan_study(study, *, points=None, ratio=None, controller=None, counts=None, extra=None):
+    """The [`ProbePlan`][] of `study` (module docstring).
+
+    **Arguments:**
+
+    - `points`: the count for every feature; `ratio`: the tolerance-to-U ratio to
+      reach instead (default `[plan] ratio`, 4); `counts`: a count per feature id
+      (overrides both); `controller`: `"linuxcnc"` or `"fanuc"`.
+    - `extra`: `{feature: fractions}` of points to add to nothing else (a
+      "measure more" plan: only these are probed).
+    """
+    s = _settings(study, points, ratio, controller)
+    windows = _windows(study)
+    if counts is None and "points" in s:
+        counts = {f.id: max(int(s["points"]), 1) for f in study.profile.features}
+    if counts is not None:
+        for f in study.profile.features:
+            counts.setdefault(f.id, 0)
+    if extra is not None:
+        plans = _extra_plans(study, s, windows, extra)
+        dof = math.nan
+    else:
+        plans, dof = _feature_designs(study, s, windows, counts)
+    raw = _points(study, s, plans)
+    from ._plan_route import order_and_route
+
+    home, ordered, path, travel, time_s = order_and_route(study, s, raw)
+    pts = tuple(
+        PlannedPoint(i + 1, *p) for i, p in enumerate(ordered)
+    )
+    return ProbePlan(
+        study=study, points=pts, features=tuple(p[3] for p in plans if p[3] is not None),
+        home=home, path=path, settings=s, dof=dof, time_s=time_s, travel_mm=travel,
+    )  # fmt: skip
+
+
+def _extra_plans(study, s, windows, extra):
+    plans = []
+    for f in study.profile.features:
+        ts = np.asarray(extra.get(f.id, ()), dtype=float)
+        if ts.size:
+            plans.append((f, ts, np.zeros(ts.size, dtype=bool), None))
+    return plans
+
+
+def _points(study, s, plans):
+    r = study.probe.ball_radius
+    out_dist = s["stock"] + s["clearance"]
+    raw = []
+    for f, ts, inside, _ in plans:
+        if len(ts) == 0:
+            continue
+        q = np.asarray(f.point_at(np.asarray(ts, dtype=float)), dtype=float)
+        n = np.asarray(f.outward_normal(q), dtype=float)
+        c = q + r * n
+        start = c + out_dist * n
+        target = c - s["overtravel"] * n
+        for k in range(len(ts)):
+            raw.append((
+                f.id, float(ts[k]), _pt(q[k]), _pt(c[k]), _pt(-n[k]), _pt(start[k]),
+                _pt(target[k]), bool(inside[k]),
+            ))  # fmt: skip
+    _check_probe_moves(study, s, raw)
+    return raw
+
+
+def _pt(v) -> tuple[float, float]:
+    return (float(v[0]), float(v[1]))
+
+
+def _check_probe_moves(study, s, raw) -> None:
+    """The stand-off of every point outside the stock by the clearance, and its probe
+    move meeting no other feature before its own."""
+    r = study.probe.ball_radius
+    polys = {f.id: feature_polyline(f) for f in study.profile.features}
+    need = r + s["stock"] + s["clearance"]
+    for fid, t, _q, c, _a, start, _tg, _i in raw:
+        for gid, poly in polys.items():
+            d = float(point_distance(np.asarray([start]), poly)[0])
+            if d < need - _SAFE:
+                raise InputError(
+                    f"feature {fid!r} at t={t:.3f}: the probe's stand-off is {d - r:.3f} mm "
+                    f"from feature {gid!r}, less than stock + clearance "
+                    f"({s['stock'] + s['clearance']:g} mm): the ball cannot approach along "
+                    "the normal there (an undercut or a narrow groove)",
+                    file=str(study.path),
+                    feature=fid,
+                )
+            if gid != fid and path_distance(start, c, poly) < r - _SAFE:
+                raise InputError(
+                    f"feature {fid!r} at t={t:.3f}: the probe move meets feature {gid!r} "
+                    "before the surface it probes (an undercut)",
+                    file=str(study.path),
+                    feature=fid,
+                )
