@@ -209,10 +209,13 @@ def finish_contour(program: GcodeProgram, *, run: int | None = None) -> FinishCo
     """
     runs = compensation_runs(program)
     if not runs:
+        first = next((m.line for m in program.moves if m.kind != "rapid"), None)
         raise _err(
             program,
             "no nose compensation (G41/G42) in the program: the path is the tool's, not the "
-            "part's; program the finish contour with G41/G42 ... G40",
+            "part's; program the finish contour with G41/G42 ... G40"
+            + ("" if first is None else " (this is its first cutting move)"),
+            first,
         )
     if run is None and len(runs) > 1:
         each = [
