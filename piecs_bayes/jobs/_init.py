@@ -44,12 +44,12 @@ from pathlib import Path
 
 from ..errors import AnalysisError, InputError
 from ..gcode import FinishContour, finish_contour, read_gcode, read_tool_table
-from ..geometry import feature_form, iso2768_tolerance
+from ..geometry import iso2768_tolerance
 from ..io import FeatureText, Setting, StudyText, load_study, study_toml, write_file_atomic
+from ._init_names import MM_PER, feature_ids, general_tolerance
 
 __all__ = ["InitResult", "study_from_program", "init_study"]
 
-_MM_PER = {"mm": 1.0, "in": 25.4}
 _GEOMETRY_TOL_MM = 1e-9
 
 
@@ -67,52 +67,6 @@ class InitResult:
     def __repr__(self) -> str:
         ids = ", ".join(f.id for f in self.content.features)
         return f"InitResult({self.path or '<not written>'}: {self.content.kind}, {ids})"
-
-
-def _num(value: float, units: str) -> str:
-    text = f"{value:.{5 if units == 'in' else 4}f}".rstrip("0").rstrip(".")
-    text = "0" if text in ("-0", "") else text
-    return text.replace("-", "m").replace(".", "p")
-
-
-def _ids_and_forms(contour: FinishContour, units: str) -> list[tuple[str, str]]:
-    scale = _MM_PER[units]
-    count = {"taper": 0, "arc": 0}
-    seen: dict[str, int] = {}
-    out = []
-    for s in contour.segments:
-        form = feature_form(s.start, s.end, s.center)
-        if form == "cylinder":
-            head = "dia" if contour.kind == "external" else "bore"
-            fid = f"{head}_{_num(2 * s.start[0] / scale, units)}"
-        elif form == "face":
-            z = s.start[1] / scale
-            fid = f"face_zp{_num(z, units)}" if z > 0 else f"face_z{_num(-z, units)}"
-        else:
-            count[form] += 1
-            fid = f"{form}_{count[form]}"
-        seen[fid] = seen.get(fid, 0) + 1
-        out.append((fid if seen[fid] == 1 else f"{fid}_{seen[fid]}", form))
-    return out
-
-
-def _tolerance(seg, form: str, tol_class: str, units: str):
-    """`(tolerance_on, ±t in the study's units, comment)` of a feature."""
-    if form == "cylinder":
-        on, size, what = "diameter", 2 * abs(seg.start[0]), "Ø{} mm"
-    elif form == "face":
-        depth = abs(seg.start[1])
-        on, size = "length", max(depth, 0.5)
-        what = f"the face {depth:.6g} mm from Z0" + (" (as 0.5 mm)" if depth < 0.5 else "")
-    elif form == "taper":
-        on, size, what = "normal", math.dist(seg.start, seg.end), "a taper {} mm long"
-    else:
-        on, size, what = "normal", seg.radius, "R{} mm"
-    gt = iso2768_tolerance(size, tol_class, table="radius" if form == "arc" else "linear")
-    comment = f"{gt.label} general tolerance for {what.replace('{}', f'{size:.6g}')}"
-    if gt.note:
-        comment += f" ({gt.note})"
-    return on, gt.value / _MM_PER[units], f"{comment}: replace with the drawing's"
 
 
 def _nose_radius(contour, tool_table, tool_units, scale) -> Setting:
@@ -237,12 +191,12 @@ def study_from_program(
     contour = finish_contour(read_gcode(program), run=run)
     _check_kind(contour, kind)
     units = contour.units or "mm"
-    scale = _MM_PER[units]
+    scale = MM_PER[units]
     xs = scale / 2 if x_mode == "diameter" else scale
-    ids = _ids_and_forms(contour, units)
+    ids = feature_ids(contour, units)
     feats = []
     for seg, (fid, form) in zip(contour.segments, ids, strict=True):
-        on, t, why = _tolerance(seg, form, tolerance_class, units)
+        on, t, why = general_tolerance(seg, form, tolerance_class, units)
         where = f"line {seg.line}" + (f" ({seg.block})" if seg.block else "")
         pt = lambda p: (p[0] / xs, p[1] / scale)  # noqa: E731
         feats.append(
