@@ -1,6 +1,7 @@
 """Part programs (G-code, lathe dialect): lossless lexing, modal state, tool tables,
 tool-nose compensation (G41/G42), the adjusted finish-cut program (with its traceability
-comment block), the tool that cuts the finish pass, and the rs274 bridge.
+comment block), the finish contour (a study's profile from the program), the tool that
+cuts the finish pass, and the rs274 bridge.
 
 Builds on `piecs_bayes.geometry` (features of the profile) and `piecs_bayes.errors`;
 neither `geometry` nor `io` imports this package.
@@ -12,6 +13,10 @@ from ._adjust import BlockMap as BlockMap
 from ._adjust import ProgramAdjustment as ProgramAdjustment
 from ._adjust import adjust_program as adjust_program
 from ._adjust import map_blocks_to_profile as map_blocks_to_profile
+from ._contour import ContourSegment as ContourSegment
+from ._contour import FinishContour as FinishContour
+from ._contour import compensation_runs as compensation_runs
+from ._contour import finish_contour as finish_contour
 from ._header import comment_style as comment_style
 from ._header import comment_text as comment_text
 from ._header import diff_labels as diff_labels

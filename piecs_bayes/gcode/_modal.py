@@ -18,6 +18,7 @@ the file, line number and text; nothing is dropped silently):
 | G4 P, G43 (H) G49, G54-G59, G61 G61.1 G64 (P Q), G94 G95 G96 G97 | passed through |
 | M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30, T F S N | passed through (T/M6 tracked) |
 | O (first word), ``%`` lines, ``( )`` and ``;`` comments | kept |
+| G32 G33 G33.1 G76 (threads), G17 G19 (other planes), G93, Y/J words | refused, named |
 
 Modal defaults are LinuxCNC's (radius mode G8, G90, incremental arc centres
 G91.1, no motion mode until G0-G3), except the plane: G18 is assumed for a
@@ -81,6 +82,11 @@ _REFUSED = {
     "G19": "only the XZ plane (G18) is supported for a lathe",
     "G93": "inverse-time feed (G93) is not supported",
 }
+_THREAD = (
+    "threading is not understood: a thread is a helix synchronised with the spindle, "
+    "not a contour of lines and arcs"
+)
+_REFUSED.update({code: _THREAD for code in ("G32", "G33", "G33.1", "G76")})
 # Arc tolerances (mm): how far an R arc may fall short of its chord, and how much an
 # I/K arc's start and end radii may differ; chosen to accept what rs274 accepts
 # on the test corpus (0.00005 in; 0.01 mm or 0.001 in times sqrt(2), twice).
@@ -297,14 +303,15 @@ class _Reader:
         seen: dict[str, object] = {}
         gcodes: dict[str, str] = {}
         mcodes: dict[str, str] = {}
+        for w in line.words:  # refused codes first: a thread cycle's J word says less
+            if w.letter == "G" and w.code in _REFUSED:
+                raise self.err(line, f"{w.code}: {_REFUSED[w.code]}")
         for k, w in enumerate(line.words):
             if w.letter not in _LETTERS:
                 hint = " (a lathe program lives in the XZ plane)" if w.letter in "YJ" else ""
                 raise self.err(line, f"word {w} is not understood{hint}")
             if w.letter == "G":
                 code = w.code
-                if code in _REFUSED:
-                    raise self.err(line, f"{code}: {_REFUSED[code]}")
                 group = _G_GROUP_OF.get(code)
                 if group is None:
                     raise self.err(line, f"{code} is not understood")

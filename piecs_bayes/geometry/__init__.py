@@ -21,6 +21,9 @@ from ._drawn import tolerance_choices as tolerance_choices
 from ._intersect import intersect_circle_circle as intersect_circle_circle
 from ._intersect import intersect_line_circle as intersect_line_circle
 from ._intersect import intersect_line_line as intersect_line_line
+from ._iso2768 import ISO2768_CLASSES as ISO2768_CLASSES
+from ._iso2768 import GeneralTolerance as GeneralTolerance
+from ._iso2768 import iso2768_tolerance as iso2768_tolerance
 from ._profile import Profile as Profile
 from ._profile import ProfileError as ProfileError
 from ._profile import make_feature as make_feature

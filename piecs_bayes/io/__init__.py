@@ -1,5 +1,5 @@
 """Read and validate what the user brings (study files, probe CSVs; programs: `gcode`),
-and write files atomically, never over an input."""
+write a new study's text (`study_toml`), and write files atomically, never over an input."""
 
 from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._atomic import write_bytes_atomic as write_bytes_atomic
@@ -26,4 +26,9 @@ from ._settings import Study as Study
 from ._settings import parse_fix as parse_fix
 from ._settings import split_fix as split_fix
 from ._study import load_study as load_study
+from ._study_text import FeatureText as FeatureText
+from ._study_text import Setting as Setting
+from ._study_text import StudyText as StudyText
+from ._study_text import study_toml as study_toml
+from ._study_text import toml_number as toml_number
 from ._text import read_bytes as read_bytes

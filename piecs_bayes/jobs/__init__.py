@@ -13,6 +13,7 @@ study and returns immutable data; `piecs_bayes.export` renders and writes it.
 - the coverage check of the uncertainty model on simulated parts
   (`coverage_check`) and the simulated data sets (`piecs_bayes.jobs.simulate`);
 - `options`: the one translation of a study into the layers' settings;
+- `init_study`: a new study whose profile is the finish contour of a part program;
 - `apply_route`: the one route of the correction to the machine (program, error
   spec or tool offset; never two).
 """
@@ -48,6 +49,9 @@ from ._fit import inliers as inliers
 from ._fit import load_probe_data as load_probe_data
 from ._fit import pooled_sigma as pooled_sigma
 from ._fit import toolpath_uncertainty as toolpath_uncertainty
+from ._init import InitResult as InitResult
+from ._init import init_study as init_study
+from ._init import study_from_program as study_from_program
 from ._machine import error_spec as error_spec
 from ._machine import tool_offsets as tool_offsets
 from ._main import run_job as run_job

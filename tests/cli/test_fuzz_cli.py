@@ -11,7 +11,8 @@ types, NaN, infinities, huge numbers, non-UTF-8 bytes, a BOM) and runs
 - leave no temporary file behind.
 
 Plus one case per class of the hardening issue (typos, implausible data,
-unsafe G-code, file-system faults, signals), and a SIGTERM in the middle of a
+unsafe G-code, file-system faults, signals), one per refusal of `init` (a program
+whose contour cannot be a study; an existing study without --force), and a SIGTERM in the middle of a
 run that must leave no partial output.
 """
 
@@ -228,6 +229,50 @@ def test_each_class_gets_its_one_line_message(capsys, demo_copy, case):
     _check(rc, text, demo_copy, before, [study.name, "probe_part01.csv"], None)
     assert rc == code and expect in text, text
     assert len(text.strip().splitlines()) == 1, text
+
+
+#: `init` on the demo program with one change: (name, old, new, extra argv, line, message)
+INIT_CLASSES = [
+    ("init_no_comp", "N50 G42 G1", "N50 G1", [], 7, "no nose compensation (G41/G42) in the program: the path is the tool's, not the part's"),
+    ("init_rapid", "N90 G1 X30.000", "N90 G0 X30.000", [], 11, "a rapid (G0) inside the compensated contour"),
+    ("init_thread", "N80 G1 X30.000 Z-45.000", "N80 G33 X30.000 Z-45.000 K1.5", [], 10, "G33: threading is not understood"),
+    ("init_thread_cycle", "N30 G96", "N25 G76 P1.5 Z-20 I-1 J0.1 K1\nN30 G96", [], 5, "G76: threading"),
+    ("init_non_planar", "N70 G1 X24.000 Z-30.000", "N70 G1 X24.000 Y1 Z-30.000", [], 9, "XZ plane"),
+    ("init_two_runs", "N160 M30", "G42 G1 X10 Z2\nG1 Z-5\nG1 X20\nG40 G0 X60\nN160 M30", [], None, "2 compensated runs (run 1: lines 7-15 (G42); run 2: lines 18-20 (G42))"),
+    ("init_no_feature", "N10", "N10", ["--run", "1"], 7, None),
+    ("init_kind", "N10", "N10", ["--kind", "internal"], 7, "G42 (line 7) puts the tool nose right of travel"),
+    ("init_lone_face", "N70 G1 X24.000 Z-30.000", "N65 G1 X26 Z-1\nN70 G40 G0 X60\nM30", [], 8, "a lone face"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("case", INIT_CLASSES, ids=[c[0] for c in INIT_CLASSES])
+def test_each_init_refusal_gets_its_one_line_message(capsys, tmp_path, case):
+    name, old, new, extra, line, expect = case
+    text = (DEMO / "finish.ngc").read_text()
+    assert old in text, old
+    if name == "init_no_feature":  # the lead-in, then straight to the exit
+        keep = text.splitlines(keepends=True)
+        text = "".join(keep[:7] + keep[14:])  # up to N50, then N130 on
+        expect = "has no feature between its lead-in (line 7) and its exit (line 8)"
+    prog = tmp_path / f"{name}.ngc"
+    prog.write_text(text.replace(old, new, 1))
+    out = tmp_path / "out.toml"
+    before = _digest(tmp_path)
+    rc, msg = _run(capsys, ["init", prog, "--out", out, *extra])
+    _check(rc, msg, tmp_path, before, [prog.name], tmp_path)
+    where = f"{prog.name}:{line}:" if line is not None else f"{prog.name}: "
+    assert rc == 2 and expect in msg and where in msg, msg
+    assert len(msg.strip().splitlines()) == 1, msg
+    assert not out.exists()
+
+
+def test_init_never_writes_over_a_study(capsys, demo_copy, tmp_path):
+    study = tmp_path / "study.toml"
+    study.write_bytes((DEMO / "study.toml").read_bytes())
+    before = _digest(tmp_path)
+    rc, msg = _run(capsys, ["init", demo_copy / "finish.ngc", "--out", study])
+    assert rc == 2 and "exists; pass --force to write over it" in msg, msg
+    assert _digest(tmp_path) == before
 
 
 def test_a_utf8_bom_is_accepted_in_the_study(capsys, demo_copy):

@@ -1,0 +1,276 @@
+"""The finish contour of a lathe program: the part's profile as the program cuts it.
+
+With tool-nose compensation on (G41/G42, G41.1/G42.1) a program describes the
+**part's edge**, not the tool's path; that edge is the nominal profile of the
+study. [`finish_contour`][] reads it from a [`GcodeProgram`][] (read with the
+package's own modal interpreter: G7/G8, G20/G21, G90/G91, G2/G3 by I/K or R):
+
+- **the run**: the compensated moves from the G41/G42 that switches
+  compensation on up to G40 (or the program's end). A program with several
+  runs needs `run=` (1-based) and is otherwise refused naming each run's lines;
+- **lead-in and exit**: the run's first move (the one that switches
+  compensation on, `Motion.entry`: it brings the nose onto the contour from the
+  air) and its last move (the one before G40 or the program end: it leaves the
+  part) are **not features**. Every move strictly between them is one feature:
+  G1 -> a line, G2/G3 -> an arc with its exact centre (the programmed centre
+  moved onto the chord's perpendicular bisector, so that start and end are
+  equidistant from it). A zero-length move gives no feature;
+- **the material side**: G42 puts the nose right of travel (drawing frame: z
+  right, x up), so the material is left and the outward normal right (geometry
+  side -1); G41 the reverse (+1); a negative G41.1/G42.1 diameter swaps them.
+  The kind follows: ``"external"`` when that side is the one
+  `profile_side(chain, internal=False)` gives for the chain, else ``"internal"``.
+
+Refused (:class:`~piecs_bayes.errors.InputError` with the file, the line and
+why): no G41/G42 at all (the path is the tool's, not the part's); a rapid (G0)
+between lead-in and exit; a full-circle arc; several runs without `run`; a run
+with no feature between lead-in and exit; a contour that encloses no area with
+the spindle axis (a lone face: its material side cannot be told). Threads
+(G32/G33/G33.1/G76) and non-planar words (Y, J) are refused by the reader.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import InputError
+from ..geometry import ProfileError, profile_side
+from ._modal import CompSetting, GcodeProgram, Motion
+
+__all__ = ["ContourSegment", "FinishContour", "compensation_runs", "finish_contour"]
+
+
+@dataclass(frozen=True)
+class ContourSegment:
+    """One feature of the contour: ``kind`` ``"line"`` or ``"arc"``; points ``(x, z)``
+    in mm with x a radius; ``center``/``ccw`` for arcs (G3: ``ccw=True``); ``line``
+    the program line it comes from and ``source`` that line's text (N word removed)."""
+
+    kind: str
+    start: tuple[float, float]
+    end: tuple[float, float]
+    line: int
+    source: str
+    block: str | None = None
+    """The line's N word (``"N70"``), or None."""
+    center: tuple[float, float] | None = None
+    ccw: bool = False
+
+    @property
+    def spec(self) -> dict:
+        """The plain spec `geometry.make_feature` / `profile_side` take (no id)."""
+        spec = {"p0": self.start, "p1": self.end}
+        if self.kind == "arc":
+            spec.update(center=self.center, ccw=self.ccw)
+        return spec
+
+    @property
+    def radius(self) -> float | None:
+        return None if self.center is None else math.dist(self.center, self.start)
+
+
+@dataclass(frozen=True)
+class FinishContour:
+    """The finish contour of one compensation run (see the module doc).
+
+    ``segments`` in program order; ``comp`` the G41/G42 that switched it on;
+    ``side`` the outward normal's side of travel (+1 left, -1 right) and ``kind``
+    ``"external"`` / ``"internal"``; ``lead_in`` / ``exit`` the lines of the moves
+    that are not features; ``off`` the line of G40 (None: the program's end);
+    ``units`` the program's units in force over the contour (``"mm"`` / ``"in"``,
+    None when they change within it); ``run`` / ``runs`` which run of how many;
+    ``title`` the program's name (its O line's comment, else its first comment,
+    else its O word; None without any) and ``program`` the file name."""
+
+    segments: tuple[ContourSegment, ...]
+    comp: CompSetting
+    side: int
+    kind: str
+    lead_in: int
+    exit: int
+    off: int | None
+    units: str | None
+    run: int
+    runs: int
+    title: str | None
+    program: str | None
+
+    def __repr__(self) -> str:
+        code = self.comp.code
+        return (
+            f"FinishContour({len(self.segments)} features, {self.kind}, {code} at line "
+            f"{self.comp.line}; lead-in line {self.lead_in}, exit line {self.exit})"
+        )
+
+
+def compensation_runs(program: GcodeProgram) -> tuple[tuple[Motion, ...], ...]:
+    """The moves of each compensation run (G41/G42 ... G40), in program order; a
+    G41/G42 followed by no move makes no run."""
+    runs: list[list[Motion]] = []
+    for m in program.moves:
+        if m.comp is None:
+            continue
+        if runs and runs[-1][-1].comp is m.comp and not m.entry:
+            runs[-1].append(m)
+        else:
+            runs.append([m])
+    return tuple(tuple(r) for r in runs)
+
+
+def _err(program, msg, line=None, value=None) -> InputError:
+    return InputError(msg, file=program.name or "<program>", line=line, value=value)
+
+
+def _off_line(program: GcodeProgram, comp: CompSetting) -> int | None:
+    """The line of the G40 that ends the run switched on by `comp`."""
+    on = False
+    for ev in program.events:
+        if hasattr(ev, "kind"):
+            continue
+        if ev.setting is comp:
+            on = True
+        elif on and ev.setting is None:
+            return ev.line
+    return None
+
+
+def _nose_side(comp: CompSetting) -> str:
+    side = comp.side
+    if comp.diameter_mm is not None and comp.diameter_mm < 0:
+        side = "left" if side == "right" else "right"
+    return side
+
+
+def _block_text(program: GcodeProgram, number: int) -> tuple[str, str | None]:
+    src = program.source.line(number)
+    n = src.word("N")
+    text = src.text
+    if n is not None:
+        text = text[: n.start] + text[n.end :]
+    return " ".join(text.split()), (None if n is None else f"N{n.text}")
+
+
+def _title(program: GcodeProgram) -> str | None:
+    o_word = None
+    for src in program.lines:
+        o = src.word("O")
+        if o is not None:
+            o_word = f"O{o.text}"
+            if src.comments:
+                return src.comments[0].text.strip() or o_word
+    for src in program.lines:
+        if src.comments and all(w.letter in "NO" for w in src.words):
+            text = src.comments[0].text.strip()
+            if text:
+                return text
+    return o_word
+
+
+def _segments(program: GcodeProgram, run) -> list[ContourSegment]:
+    out = []
+    for m in run[1:-1]:
+        if m.kind == "rapid":
+            raise _err(
+                program,
+                f"a rapid (G0) inside the compensated contour (between its lead-in at line "
+                f"{run[0].line} and its exit at line {run[-1].line}): a rapid cuts no "
+                "feature; program it as G1, or end the contour (G40) before it",
+                m.line,
+            )
+        if m.is_arc and m.start == m.end:
+            raise _err(program, "a full-circle arc is not a feature of a turned profile", m.line)
+        if m.start == m.end:
+            continue  # a zero-length move: no feature
+        text, block = _block_text(program, m.line)
+        if m.is_arc:
+            seg = ContourSegment(
+                "arc", m.start, m.end, m.line, text, block, m.exact_center(), m.ccw
+            )
+        else:
+            seg = ContourSegment("line", m.start, m.end, m.line, text, block)
+        out.append(seg)
+    return out
+
+
+def finish_contour(program: GcodeProgram, *, run: int | None = None) -> FinishContour:
+    """The finish contour of `program`: one feature per move of a G41/G42 run
+    between its lead-in and its exit (see the module doc for the rules).
+
+    **Arguments:**
+
+    - `program`: a read [`GcodeProgram`][] (`read_gcode`).
+    - `run`: which compensation run (1-based) when the program has several.
+
+    **Returns:** a [`FinishContour`][] (mm, radius X, program coordinates).
+
+    **Raises:** [`InputError`][piecs_bayes.errors.InputError] naming the program,
+    the line and why, for every contour it cannot represent.
+    """
+    runs = compensation_runs(program)
+    if not runs:
+        first = next((m.line for m in program.moves if m.kind != "rapid"), None)
+        raise _err(
+            program,
+            "no nose compensation (G41/G42) in the program: the path is the tool's, not the "
+            "part's; program the finish contour with G41/G42 ... G40"
+            + ("" if first is None else " (this is its first cutting move)"),
+            first,
+        )
+    if run is None and len(runs) > 1:
+        each = [
+            f"run {i}: lines {r[0].comp.line}-{r[-1].line} ({r[0].comp.code})"
+            for i, r in enumerate(runs, 1)
+        ]
+        lines = "; ".join(each if len(each) <= 4 else [*each[:3], "...", each[-1]])
+        raise _err(
+            program,
+            f"{len(runs)} compensated runs ({lines}): choose the finish contour with --run N",
+        )
+    k = 1 if run is None else int(run)
+    if not 1 <= k <= len(runs):
+        raise _err(program, f"--run {run}: the program has {len(runs)} compensated run(s)")
+    moves = runs[k - 1]
+    comp = moves[0].comp
+    if len(moves) < 3:
+        raise _err(
+            program,
+            f"the compensated run of {comp.code} (line {comp.line}) has no feature between "
+            f"its lead-in (line {moves[0].line}) and its exit (line {moves[-1].line}): the "
+            "first compensated move brings the nose onto the contour and the last leaves it",
+            comp.line,
+        )
+    segments = _segments(program, moves)
+    if not segments:
+        raise _err(
+            program,
+            f"the compensated run of {comp.code} (line {comp.line}) has no feature between "
+            f"its lead-in (line {moves[0].line}) and its exit (line {moves[-1].line}): "
+            "only zero-length moves",
+            comp.line,
+        )
+    side = 1 if _nose_side(comp) == "left" else -1
+    try:
+        outer = profile_side([s.spec for s in segments], internal=False)
+    except ProfileError:
+        raise _err(
+            program,
+            f"the contour (lines {segments[0].line}-{segments[-1].line}) encloses no area with "
+            "the spindle axis (a lone face): its material side cannot be told",
+            segments[0].line,
+        ) from None
+    units = {program.state(s.line).units for s in segments}
+    return FinishContour(
+        segments=tuple(segments),
+        comp=comp,
+        side=side,
+        kind="external" if side == outer else "internal",
+        lead_in=moves[0].line,
+        exit=moves[-1].line,
+        off=_off_line(program, comp),
+        units=units.pop() if len(units) == 1 else None,
+        run=k,
+        runs=len(runs),
+        title=_title(program),
+        program=program.name,
+    )

@@ -1,0 +1,293 @@
+"""A new study from the finish program: `piecs-bayes init` ([`init_study`][]).
+
+The study's `[profile]` is the finish contour of the part program
+(`gcode.finish_contour`: the moves of a G41/G42 run strictly between its lead-in
+and its exit, one feature each), so that the profile and the program cannot
+disagree. What this job adds to the contour:
+
+- **ids**, readable and unique: a line of constant x is ``dia_<Ø>`` (external)
+  or ``bore_<Ø>`` (internal), a line of constant z ``face_z<depth>`` with depth
+  = -z (``face_z0``, ``face_z60`` at z = -60; z > 0 gives ``face_zp<z>``), any
+  other line ``taper_1``, ``taper_2``..., an arc ``arc_1``, ``arc_2``...; numbers
+  in the study's units with trailing zeros stripped and ``p`` for the decimal
+  point (``dia_24p5``: a dot would split a `[fit] fix` entry
+  ``feature.parameter``); a repeated id gets ``_2``, ``_3``...
+- **tolerance_on** by form: ``"diameter"`` (dia/bore), ``"length"`` (faces),
+  ``"normal"`` (tapers, arcs): the tolerances are written as drawn;
+- **tolerances**: ISO 2768-1 general tolerances of the class (`--tolerance-class`,
+  default m) by nominal size: a diameter's diameter, a face's distance from the
+  program's Z zero (at least 0.5 mm, the first range), a taper's length (Table 1);
+  an arc's radius (Table 2). Where the class has no value (below 0.5 mm, f above
+  2000 mm, v up to 3 mm) the nearest range's is used and the comment says so.
+  Each is marked as a general tolerance to replace with the drawing's;
+- `[study]`: `name` (the program's O-line comment, first comment or O word,
+  else the file's stem), `units` (the program's: G20 -> ``"in"``, every number
+  in inches), `part_program` (relative to the study's folder), `probe_files = []`;
+- `[probe]`: `ball_radius` (given, else a placeholder of 1 mm, or half the
+  smallest concave arc radius when that is smaller, so that the study loads) and
+  `x_mode`; `[program] nose_radius` from G41.1/G42.1's D word or the tool table,
+  else a commented placeholder.
+
+The program is read with the reader's defaults (radius mode and mm until the
+program says G7/G20), as every job reads the study's `part_program`. The written
+text is loaded back (`io.load_study`) and its geometry compared with the
+program's before the file is renamed into place; an existing file is refused
+without `force`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import AnalysisError, InputError
+from ..gcode import FinishContour, finish_contour, read_gcode, read_tool_table
+from ..geometry import iso2768_tolerance
+from ..io import FeatureText, Setting, StudyText, load_study, study_toml, write_file_atomic
+from ._init_names import MM_PER, feature_ids, general_tolerance
+
+__all__ = ["InitResult", "study_from_program", "init_study"]
+
+_GEOMETRY_TOL_MM = 1e-9
+
+
+@dataclass(frozen=True)
+class InitResult:
+    """What `init` made: the study's `content` and `text`, the `contour` it comes
+    from, and, once written, its `path` and the loaded `study`."""
+
+    content: StudyText
+    text: str
+    contour: FinishContour
+    path: Path | None = None
+    study: object = None
+
+    def __repr__(self) -> str:
+        ids = ", ".join(f.id for f in self.content.features)
+        return f"InitResult({self.path or '<not written>'}: {self.content.kind}, {ids})"
+
+
+def _nose_radius(contour, tool_table, tool_units, scale) -> Setting:
+    comp = contour.comp
+    key = "nose_radius"
+    if comp.diameter_mm is not None:
+        r = abs(comp.diameter_mm) / 2
+        why = f"the finish tool's, from the D word of {comp.code} at line {comp.line}"
+        return Setting(key, r / scale, why)
+    if tool_table is not None:
+        tools = read_tool_table(tool_table, units=tool_units)
+        if comp.tool is None or comp.tool not in tools:
+            raise InputError(
+                f"{comp.code} at line {comp.line} uses tool {comp.tool}, which the tool table "
+                f"{tool_table} does not hold",
+                file=contour.program,
+                line=comp.line,
+            )
+        why = f"tool {comp.tool} of {Path(tool_table).name}: the finish tool's nose radius"
+        return Setting(key, tools[comp.tool].radius_mm / scale, why)
+    placeholder = 0.4 / scale if scale == 1.0 else 0.016
+    return Setting(key, placeholder, "the finish tool's nose radius (gouge check)", True)
+
+
+def _check_kind(contour: FinishContour, kind: str | None) -> None:
+    if kind is None or kind == contour.kind:
+        return
+    if kind not in ("external", "internal"):
+        raise InputError(f"kind: got {kind!r}, expected 'external' or 'internal'", value=kind)
+    comp = contour.comp
+    side = "left" if contour.side == 1 else "right"
+    other = "G42" if comp.side == "left" else "G41"
+    raise InputError(
+        f"{comp.code} (line {comp.line}) puts the tool nose {side} of travel, which makes this "
+        f"contour {contour.kind}: as {kind} the nose would be on the material side and cut "
+        f"into the part; use {other}, or --kind {contour.kind}",
+        file=contour.program,
+        line=comp.line,
+        value=comp.code,
+    )
+
+
+def _ball_radius(features, contour, ball_radius_mm, scale) -> Setting:
+    concave = [
+        (s.radius, fid)
+        for s, (fid, _) in zip(contour.segments, features, strict=True)
+        if s.kind == "arc" and _is_concave(s, contour.side)
+    ]
+    smallest = min(concave, default=None)
+    if ball_radius_mm is not None:
+        if smallest is not None and smallest[0] <= ball_radius_mm:
+            raise InputError(
+                f"concave arc radius {smallest[0]:g} mm is not larger than the probe ball "
+                f"radius {ball_radius_mm:g} mm: the ball cannot touch it",
+                file=contour.program,
+                feature=smallest[1],
+                value=ball_radius_mm,
+            )
+        return Setting("ball_radius", ball_radius_mm / scale, "the calibrated ball radius")
+    r = 1.0
+    why = "placeholder: your probe's calibrated ball radius"
+    if smallest is not None and smallest[0] <= r:
+        r = smallest[0] / 2
+        why += f" (half the concave {smallest[1]}'s radius, so that the ball fits)"
+    return Setting("ball_radius", r / scale, why)
+
+
+def _is_concave(seg, side: int) -> bool:
+    """An arc is concave when its outward normal points to its centre: the centre on
+    the outward side of travel (`side` +1 left, -1 right); G3 has it on the left."""
+    return (1 if seg.ccw else -1) == side
+
+
+def _relative(program: Path, study_path: Path | None) -> str:
+    if study_path is None:
+        return program.as_posix()
+    try:
+        return Path(os.path.relpath(program.resolve(), study_path.resolve().parent)).as_posix()
+    except ValueError:  # another drive
+        return program.resolve().as_posix()
+
+
+def study_from_program(
+    program,
+    *,
+    study_path=None,
+    kind: str | None = None,
+    x_mode: str = "diameter",
+    tolerance_class: str = "m",
+    run: int | None = None,
+    tool_table=None,
+    tool_units: str = "mm",
+    ball_radius_mm: float | None = None,
+) -> InitResult:
+    """The study of a finish program, not written (see the module doc).
+
+    **Arguments:**
+
+    - `program`: the part program's path.
+    - `study_path`: where the study will be (its `part_program` is relative to it).
+    - `kind`: ``"external"`` / ``"internal"`` to check against the program's
+      compensation side (None: the program's side decides).
+    - `x_mode`: how the study writes X: ``"diameter"`` or ``"radius"``.
+    - `tolerance_class`: ISO 2768-1 class ``"f"``, ``"m"``, ``"c"``, ``"v"``
+      (``"ISO2768-m"`` is read too).
+    - `run`: which compensation run (1-based) when the program has several.
+    - `tool_table`, `tool_units`: a LinuxCNC tool table for `[program] nose_radius`.
+    - `ball_radius_mm`: the probe's ball radius (else a placeholder).
+
+    **Returns:** an [`InitResult`][] without `path`.
+
+    **Raises:** `InputError` naming the program line for a contour that cannot
+    be a study (`gcode.finish_contour`), a `kind` that contradicts G41/G42.
+    """
+    if x_mode not in ("diameter", "radius"):
+        raise InputError(f"x_mode: got {x_mode!r}, expected 'diameter' or 'radius'")
+    try:
+        iso2768_tolerance(1.0, tolerance_class)
+    except ValueError as exc:
+        raise InputError(str(exc), value=tolerance_class) from None
+    program = Path(program)
+    contour = finish_contour(read_gcode(program), run=run)
+    _check_kind(contour, kind)
+    units = contour.units or "mm"
+    scale = MM_PER[units]
+    xs = scale / 2 if x_mode == "diameter" else scale
+    ids = feature_ids(contour, units)
+    feats = []
+    for seg, (fid, form) in zip(contour.segments, ids, strict=True):
+        on, t, why = general_tolerance(seg, form, tolerance_class, units)
+        where = f"line {seg.line}" + (f" ({seg.block})" if seg.block else "")
+        pt = lambda p: (p[0] / xs, p[1] / scale)  # noqa: E731
+        feats.append(
+            FeatureText(
+                id=fid,
+                type=seg.kind,
+                start=pt(seg.start),
+                end=pt(seg.end),
+                tolerance=(-t, t),
+                tolerance_on=on,
+                center=None if seg.center is None else pt(seg.center),
+                direction=None if seg.center is None else ("ccw" if seg.ccw else "cw"),
+                comments=(f"{where}: {seg.source}",),
+                tolerance_comment=why,
+            )
+        )
+    comp = contour.comp
+    nose = "left" if contour.side == 1 else "right"
+    off = f"G40 at line {contour.off}" if contour.off else "the program's end"
+    run_text = f" (run {contour.run} of {contour.runs})" if contour.runs > 1 else ""
+    header = (
+        f"piecs_bayes study file (docs/formats.md), written by `piecs-bayes init` from "
+        f"{program.name}.",
+        f"[profile] is its finish contour{run_text}: {comp.code} at line {comp.line} to {off};",
+        f"the lead-in (line {contour.lead_in}) and the exit (line {contour.exit}) are not "
+        "features.",
+        f"Tolerances: ISO 2768-{iso2768_tolerance(1.0, tolerance_class).tol_class} general "
+        "tolerances by nominal size: replace each with the drawing's.",
+        "[probe] and [program] hold placeholders where marked: fill them in before fitting.",
+    ) + (() if contour.units else ("The program changes units within the contour: mm.",))
+    study_path = None if study_path is None else Path(study_path)
+    content = StudyText(
+        name=contour.title or program.stem,
+        units=units,
+        kind=contour.kind,
+        x_mode=x_mode,
+        features=tuple(feats),
+        part_program=_relative(program, study_path),
+        header=header,
+        study_comments={
+            "probe_files": "the gauged parts' probe files (relative to this file; globs allowed)",
+            "part_program": "relative to this file",
+            "kind": f"from {comp.code} at line {comp.line}: the nose {nose} of travel",
+            "x_mode": "X of the points below",
+        },
+        probe=(
+            _ball_radius(ids, contour, ball_radius_mm, scale),
+            Setting("x_mode", x_mode, "how the probe files write X"),
+        ),
+        program=(_nose_radius(contour, tool_table, tool_units, scale),),
+    )
+    return InitResult(content, study_toml(content), contour)
+
+
+def _compare(study, contour: FinishContour, path: Path) -> None:
+    """The loaded study's features against the program's moves (mm, radius X)."""
+    feats = study.profile.features
+    if len(feats) != len(contour.segments):
+        raise AnalysisError(f"{path}: {len(feats)} features read back, not {len(contour.segments)}")
+    for f, s in zip(feats, contour.segments, strict=True):
+        pts = [(f.p0, s.start), (f.p1, s.end)]
+        if s.center is not None:
+            pts.append((f.center, s.center))
+        dev = max(math.dist(a, b) for a, b in pts)
+        if dev > _GEOMETRY_TOL_MM or (s.center is not None) != (f.kind == "arc"):
+            raise AnalysisError(
+                f"{path}: feature {f.id!r} read back {dev:.3g} mm off line {s.line} "
+                "(please report it)"
+            )
+
+
+def init_study(program, out, *, force: bool = False, **options) -> InitResult:
+    """Write the study of a finish program to `out` (atomically; see the module doc).
+
+    **Arguments:** `program` and `out` (paths), `force` (write over an existing
+    `out`; never over the program), and the options of [`study_from_program`][].
+
+    **Returns:** the [`InitResult`][] with `path` and the loaded `study`.
+
+    **Raises:** `InputError` for an existing `out` without `force`, and as
+    `study_from_program` does.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir() and not force:
+        raise InputError("exists; pass --force to write over it", file=str(out))
+    result = study_from_program(program, study_path=out, **options)
+
+    def write(tmp):
+        Path(tmp).write_text(result.text, encoding="utf-8")
+        _compare(load_study(tmp), result.contour, out)  # before it is renamed into place
+
+    write_file_atomic(out, write, protect=[program])
+    study = load_study(out)
+    return InitResult(result.content, result.text, result.contour, out, study)
