@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["gain", "nonneg_int", "positive_int", "positive_mm"]
+__all__ = ["gain", "nonneg_int", "positive_float", "positive_int", "positive_mm"]
 
 
 def _number(text: str, what: str) -> float:
@@ -21,6 +21,14 @@ def positive_mm(text: str) -> float:
     v = _number(text, "a length in mm")
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0 (mm), got {text!r}")
+    return v
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0."""
+    v = _number(text, "a number")
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
     return v
 
 

@@ -13,6 +13,9 @@ is **usable** when
    ball that slides off), and at least `end_clearance` from a tangent junction
    (the ball touches one feature there; rule 1 still holds on a concave fillet).
 
+3. (with a `standoff`) the start of the probe move, that far out along the normal,
+   keeps as far from every feature (its approach is clear of the stock).
+
 `probe_window` gives the usable fractions of a feature, the longest run of them:
 a probe plan places its points there. Distances are exact between segments;
 arcs are sampled as polylines with a chord error under 0.1 µm.
@@ -93,20 +96,28 @@ def path_distance(p0, p1, polyline: np.ndarray) -> float:
     return float(min(ends, back))
 
 
-def probe_window(profile, index: int, ball_radius: float, end_clearance: float):
+def probe_window(
+    profile, index: int, ball_radius: float, end_clearance: float, standoff: float = 0.0
+):
     """The usable fractions `(t0, t1)` of feature `index` of `profile` (see the module
-    docstring), or None when the ball cannot touch it anywhere."""
+    docstring), or None when the ball cannot touch it anywhere. With `standoff` > 0 the
+    probe move's start, `standoff` beyond the ball at contact along the normal, must
+    also keep `standoff` from every feature (a concave corner narrows the window)."""
     f = profile.features[index]
     t = np.linspace(0.0, 1.0, _WINDOW_SAMPLES)
-    _, _, c = ball_centres(f, t, ball_radius)
+    _, n, c = ball_centres(f, t, ball_radius)
+    s = c + standoff * n
     ok = np.ones(t.size, dtype=bool)
+    slack = 2.0 * CHORD_ERROR_MM  # the chords of a concave arc lie inside it
     for j, g in enumerate(profile.features):
         poly = feature_polyline(g)
         d = point_distance(c, poly)
         if j == index:
-            ok &= d >= ball_radius - 2.0 * CHORD_ERROR_MM  # the chords lie inside the arc
+            ok &= d >= ball_radius - slack
         else:
             ok &= d >= ball_radius + end_clearance
+        if standoff > 0.0:
+            ok &= point_distance(s, poly) >= ball_radius + standoff - slack
     s = t * f.length
     n = len(profile.features)
     junctions = profile.junctions

@@ -72,3 +72,5 @@ from ._plan import FeaturePlan as FeaturePlan
 from ._plan import PlannedPoint as PlannedPoint
 from ._plan import ProbePlan as ProbePlan
 from ._plan import plan_study as plan_study
+from ._plan import feature_fractions as feature_fractions
+from ._plan import plan_more as plan_more

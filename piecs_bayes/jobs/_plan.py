@@ -47,6 +47,7 @@ from ..io import parse_fix
 from ..uncertainty import (
     DesignSettings,
     FeaturePrediction,
+    augment_fractions,
     design_fractions,
     points_for_ratio,
     predict_feature,
@@ -54,7 +55,15 @@ from ..uncertainty import (
 )
 from ._options import source_sds
 
-__all__ = ["PLAN_DEFAULTS", "PlannedPoint", "FeaturePlan", "ProbePlan", "plan_study"]
+__all__ = [
+    "PLAN_DEFAULTS",
+    "PlannedPoint",
+    "FeaturePlan",
+    "ProbePlan",
+    "feature_fractions",
+    "plan_more",
+    "plan_study",
+]
 
 #: `[plan]` defaults (mm, mm/min)
 PLAN_DEFAULTS = {
@@ -174,16 +183,17 @@ def _min_points(study, f) -> int:
     return max(int(least), f.nparams + 1)
 
 
-def _windows(study):
+def _windows(study, s):
     prof, r = study.profile, study.probe.ball_radius
     out = {}
     for i, f in enumerate(prof.features):
-        w = probe_window(prof, i, r, study.plan.get("end_clearance", PLAN_DEFAULTS["end_clearance"]))
+        w = probe_window(prof, i, r, s["end_clearance"], s["stock"] + s["clearance"])
         if w is None:
             raise InputError(
                 f"the probe ball (radius {r:g} mm) cannot touch feature {f.id!r} anywhere "
-                "keeping the end clearance: a groove or corner narrower than the ball, or a "
-                "feature shorter than the ball's margins",
+                "keeping the end clearance and a clear approach: a groove or corner narrower "
+                "than the ball with stock and clearance, or a feature shorter than the "
+                "ball's margins",
                 file=str(study.path),
                 feature=f.id,
             )
@@ -234,29 +244,25 @@ def _with(ds: DesignSettings, s: dict) -> DesignSettings:
     return replace(ds, inside_share=s["inside_share"], spacing=s["spacing"])
 
 
-def plan_study(study, *, points=None, ratio=None, controller=None, counts=None, extra=None):
+def plan_study(study, *, points=None, ratio=None, controller=None, counts=None):
     """The [`ProbePlan`][] of `study` (module docstring).
 
     **Arguments:**
 
     - `points`: the count for every feature; `ratio`: the tolerance-to-U ratio to
       reach instead (default `[plan] ratio`, 4); `counts`: a count per feature id
-      (overrides both); `controller`: `"linuxcnc"` or `"fanuc"`.
-    - `extra`: `{feature: fractions}` of points to add to nothing else (a
-      "measure more" plan: only these are probed).
+      (overrides both); a count is at least the fit's least points for the feature
+      (`[fit] min_points_line`/`min_points_arc`, and one more than its parameters);
+      `controller`: `"linuxcnc"` or `"fanuc"`.
     """
     s = _settings(study, points, ratio, controller)
-    windows = _windows(study)
+    windows = _windows(study, s)
     if counts is None and "points" in s:
-        counts = {f.id: max(int(s["points"]), 1) for f in study.profile.features}
-    if counts is not None:
-        for f in study.profile.features:
-            counts.setdefault(f.id, 0)
-    if extra is not None:
-        plans = _extra_plans(study, s, windows, extra)
-        dof = math.nan
-    else:
-        plans, dof = _feature_designs(study, s, windows, counts)
+        counts = {f.id: int(s["points"]) for f in study.profile.features}
+    if counts is not None:  # at least the fit's least points per feature
+        counts = {f.id: max(int(counts.get(f.id, 0)), _min_points(study, f))
+                  for f in study.profile.features}  # fmt: skip
+    plans, dof = _feature_designs(study, s, windows, counts)
     raw = _points(study, s, plans)
     from ._plan_route import order_and_route
 
@@ -267,6 +273,63 @@ def plan_study(study, *, points=None, ratio=None, controller=None, counts=None, 
     return ProbePlan(
         study=study, points=pts, features=tuple(p[3] for p in plans if p[3] is not None),
         home=home, path=path, settings=s, dof=dof, time_s=time_s, travel_mm=travel,
+    )  # fmt: skip
+
+
+def feature_fractions(feature, points) -> np.ndarray:
+    """The fractions of `feature` nearest to nominal points `(k, 2)` (part frame, mm,
+    radius X): where probed points lie along it."""
+    t = np.linspace(0.0, 1.0, 4001)
+    q = np.asarray(feature.point_at(t), dtype=float)
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    d = np.sum((p[:, None, :] - q[None]) ** 2, axis=2)
+    return t[np.argmin(d, axis=1)]
+
+
+def plan_more(study, more: dict, probed: dict, *, controller=None):
+    """The plan of a "measure more" verdict: for each feature of `more`
+    (`{feature: extra points}`), that many new points placed, with the points already
+    probed (`probed`: `{feature: nominal points (k, 2)}`, part frame, mm, radius X)
+    held fixed, to lower the characteristic's uncertainty most
+    (`uncertainty.augment_fractions`). The predictions are for all points together."""
+    s = _settings(study, None, None, controller)
+    windows = _windows(study, s)
+    counts = {}
+    for fid in more:
+        if fid not in study.profile.ids:
+            raise InputError(
+                f"unknown feature id {fid!r}; the profile has {', '.join(study.profile.ids)}",
+                file=str(study.path),
+                feature=fid,
+            )
+    for f in study.profile.features:
+        have = probed.get(f.id)
+        counts[f.id] = (0 if have is None else len(have)) + int(more.get(f.id, 0))
+    ds = _with(_design_settings(study, _sigma_dof(study, counts)), s)
+    fixed = parse_fix(study.fit.fix)
+    extra, plans = {}, []
+    for f in study.profile.features:
+        n_add = int(more.get(f.id, 0))
+        if n_add <= 0:
+            continue
+        have = probed.get(f.id)
+        have_t = feature_fractions(f, have) if have is not None and len(have) else np.zeros(0)
+        new = augment_fractions(f, have_t, n_add, windows[f.id], ds, fixed=fixed.get(f.id, ()))
+        extra[f.id] = new
+        both = np.sort(np.concatenate([have_t, new]))
+        pred = predict_feature(f, both, ds, fixed=fixed.get(f.id, ()))
+        uni = predict_feature(f, uniform_fractions(both.size, windows[f.id]), ds, fixed=fixed.get(f.id, ()))
+        plans.append(FeaturePlan(f.id, windows[f.id], tuple(map(float, new)), pred, uni))
+    if not extra:
+        raise InputError("no feature asks for more points: nothing to plan", file=str(study.path))
+    raw = _points(study, s, _extra_plans(study, s, windows, extra))
+    from ._plan_route import order_and_route
+
+    home, ordered, path, travel, time_s = order_and_route(study, s, raw)
+    pts = tuple(PlannedPoint(i + 1, *p) for i, p in enumerate(ordered))
+    return ProbePlan(
+        study=study, points=pts, features=tuple(plans), home=home, path=path, settings=s,
+        dof=ds.dof, time_s=time_s, travel_mm=travel,
     )  # fmt: skip
 
 

@@ -81,6 +81,8 @@ def study_toml_text(
         f"ball_radius_u = {ball_radius_u}",
         f"repeatability = {repeatability}",
         'x_mode = "diameter"         # the probe files write X as diameters',
+        "tool = 9                    # the probe is tool 9 (T0909 / T9 M6)",
+        "feed = 200.0                # probing feed (mm/min): the calibration holds at this feed",
         "",
         "[machine]                    # machine -> part transform",
         f"x_centre = {transform.x_centre}",

@@ -143,7 +143,8 @@ def simulate_probe(
     **Arguments:**
 
     - `deviations`: true deviation per feature id (missing = as drawn).
-    - `points`: triggers per feature (int or dict by id; 0 skips a feature).
+    - `points`: triggers per feature (int or dict by id; 0 skips a feature), or by id
+      the fractions of the feature to probe (a probe plan's).
     - `noise_sd`: probe repeatability (isotropic, mm).
     - `outliers`: ``(feature, index, size)``: that trigger is pushed out along the
       outward normal by ``size`` mm (a chip under the stylus).
@@ -155,11 +156,11 @@ def simulate_probe(
     rng = np.random.default_rng(rng)
     feats, pts, app, surf = [], [], [], []
     for f in profile.features:
-        k = points.get(f.id, 0) if isinstance(points, dict) else points
+        t = _fractions(points, f.id, margin)
+        k = t.size
         if k <= 0:
             continue
         dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
-        t = np.linspace(margin, 1.0 - margin, k)
         s = np.asarray(f.point_at(t, dev))
         n = np.asarray(f.outward_normal(s, dev))
         c = s + ball_radius * n + rng.normal(0.0, noise_sd, size=s.shape)
@@ -183,6 +184,15 @@ def simulate_probe(
 SIMULATED_SOURCES = ("ball_radius", "x_centre", "z_offset", "scale_x", "scale_z")
 
 
+def _fractions(points, fid: str, margin: float) -> np.ndarray:
+    """The fractions probed on feature `fid`: `points` is a count for every feature,
+    a count per feature id, or the fractions themselves per id (a probe plan)."""
+    k = points.get(fid, 0) if isinstance(points, dict) else int(points)
+    if np.ndim(k):
+        return np.asarray(k, dtype=float)
+    return np.linspace(margin, 1.0 - margin, int(k)) if k > 0 else np.zeros(0)
+
+
 def simulate_parts(
     profile: Profile,
     deviations: dict[str, np.ndarray],
@@ -202,6 +212,8 @@ def simulate_parts(
     **Arguments:**
 
     - `deviations`: true deviation per feature id, `(k,)` (every part) or `(n_parts, k)`.
+    - `points`: triggers per feature (int, or by id), or by id the fractions of the
+      feature to probe (e.g. a probe plan's); `margin` applies to counts only.
     - `source_sd`: standard deviations of normal per-part errors of the sources in
       `SIMULATED_SOURCES` (the ball radius is off by `d`, the real transform is
       `transform` plus the drawn errors); the fits should use the nominal values.
@@ -222,12 +234,13 @@ def simulate_parts(
     rb = ball_radius + errors.get("ball_radius", np.zeros(n_parts))
     cents, feats = [], []
     for f in profile.features:
-        k = points.get(f.id, 0) if isinstance(points, dict) else int(points)
+        t = _fractions(points, f.id, margin)
+        k = t.size
         if k <= 0:
             continue
         dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
         dev = np.broadcast_to(dev, (n_parts, f.nparams))
-        t = jnp.linspace(margin, 1.0 - margin, k)
+        t = jnp.asarray(t)
 
         def surface(d, f=f, t=t):
             q = f.point_at(t, d)

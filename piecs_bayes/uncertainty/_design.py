@@ -45,6 +45,7 @@ from ._characteristic import at_fractions, deviation_and_jacobian, u_systematic
 __all__ = [
     "DesignSettings",
     "FeaturePrediction",
+    "augment_fractions",
     "design_fractions",
     "predict_feature",
     "points_for_ratio",
@@ -131,6 +132,7 @@ def _nearest_free(cand, inside, targets, min_gap) -> np.ndarray:
         if taken:
             gaps = np.abs(cand[:, None] - np.asarray(taken)[None, :])
             ok = np.all(gaps >= min_gap - 1e-12, axis=1)
+            ok = ok if ok.any() else np.ones(cand.size, dtype=bool)  # a full window
         else:
             ok = np.ones(cand.size, dtype=bool)
         j = int(np.argmin(np.where(ok, np.abs(cand - target), np.inf)))
@@ -210,6 +212,27 @@ def design_fractions(feature, n: int, window, settings: DesignSettings, *, fixed
     flags = np.concatenate([np.ones(n_in, dtype=bool), np.zeros(n_out, dtype=bool)])
     order = np.argsort(ts, kind="stable")
     return ts[order], flags[order]
+
+
+def augment_fractions(feature, existing, n_add: int, window, settings: DesignSettings, *, fixed=()):
+    """`n_add` new fractions in `window` that, with the points already probed at
+    fractions `existing`, minimise the criterion (the same exchange, the probed
+    points held fixed): the plan of a "measure more" verdict."""
+    free = _free_columns(feature, fixed)
+    t0, t1 = window
+    have = np.asarray(existing, dtype=float)
+    cand = np.linspace(t0, t1, _CANDIDATES)
+    jac_c = _jacobian(feature, cand, free)
+    jac_have = _jacobian(feature, have, free) if have.size else np.zeros((0, int(free.sum())))
+    jac_at = _jacobian(feature, at_fractions(feature, settings.at), free)
+    total = have.size + n_add
+    min_gap = min(settings.spacing, (t1 - t0) * feature.length / max(total - 1, 1)) / feature.length
+    best, idx = np.inf, None
+    for start in (_even_start(cand, have, n_add, min_gap), _end_start(cand, have, n_add, min_gap)):
+        crit, found = _exchange(start, cand, have, jac_c, jac_have, jac_at, min_gap)
+        if crit < best:
+            best, idx = crit, found
+    return np.sort(cand[idx])
 
 
 def predict_feature(feature, ts, settings: DesignSettings, *, fixed=()) -> FeaturePrediction:
