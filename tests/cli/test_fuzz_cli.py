@@ -216,6 +216,10 @@ CLASSES = [
     ("bad_encoding", 'name = "Demo stepped shaft"', 'name = "Demo stepped shaft"\nencoding = "klingon"', 2, "unknown encoding"),
     ("prior_key", "sd = 0.0005 }", "sdd = 0.0005 }", 2, "did you mean 'sd'"),
     ("prior_dist", 'dist = "half_normal"', 'dist = "halfnorml"', 2, "unknown distribution"),
+    # issue 29: an absurd study number is named with its key, at study load, not as
+    # implausible probe points (or an overflowing fit)
+    ("z_offset_absurd", "z_offset = -312.4873", "z_offset = 1e300", 2, "class_z_offset_absurd.toml: machine.z_offset: 1e+300 mm is a work offset beyond any machine's travel (expected |z_offset| <= 100 m, 100000 mm)"),
+    ("feature_end_absurd", "end = [44.0000, -90.0000]", "end = [44, -1e300]", 2, "class_feature_end_absurd.toml, feature 'dia_44': profile.feature[6].end: z = -1e+300 is beyond any plausible part size"),
 ]  # fmt: skip
 
 
