@@ -169,7 +169,6 @@ def drop_duplicates(probe, *, policy: str = "drop"):
         return probe
     i = int(np.flatnonzero(dup)[0])
     j = int(rows[first[inverse.reshape(-1)[np.searchsorted(rows, i)]]])
-    files = probe.file.split(",")
     where = f"line {int(probe.lines[i])} repeats line {int(probe.lines[j])}"
     fid = str(probe.feature[i])
     if policy == "error":
@@ -177,11 +176,11 @@ def drop_duplicates(probe, *, policy: str = "drop"):
             f"{int(dup.sum())} repeated trigger(s) ({where}, feature {fid!r}): a "
             "trigger counted twice shrinks every uncertainty; remove them or set "
             '[plausibility] duplicates = "drop"',
-            file=files[0] if len(files) == 1 else probe.file,
+            file=probe.file,
             feature=fid,
         )
     warnings.warn(
-        f"{probe.file}: dropped {int(dup.sum())} repeated trigger(s) with identical coordinates "
+        f"{probe.file_text}: dropped {int(dup.sum())} repeated trigger(s) with identical coordinates "
         f"({where}, feature {fid!r}); each counts once",
         PlausibilityWarning,
         stacklevel=2,
@@ -220,12 +219,11 @@ def check_probe_data(probe, profile, *, transform, ball_radius, max_correction, 
         what = f"ball centre {dist[i]:+.4g} mm from its nominal place (limit {lim_d:.3g} mm: {why})"
     else:
         what = f"point {beyond[i]:.4g} mm beyond the end of the feature (limit {lim_o:.3g} mm)"
-    files = probe.file.split(",")
     n_bad, n_part = int(bad[sel].sum()), int(sel.sum())
     raise InputError(
         f"implausible probe point of part {str(part)!r}: {what}; {n_bad} of {n_part} points "
         f"of the part are beyond the limits; likely cause: {cause}",
-        file=files[0] if len(files) == 1 else probe.file,
+        file=probe.file,
         line=int(probe.lines[i]),
         feature=fid,
         value=float(dist[i]),

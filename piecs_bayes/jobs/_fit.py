@@ -71,7 +71,7 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
         return None if any(v is None for v in vals) else np.concatenate(vals)
 
     return ProbeData(
-        file=",".join(d.file for d in datas),
+        file=tuple(f for d in datas for f in d.file),
         feature=cat("feature"),
         points=cat("points"),
         lines=cat("lines"),

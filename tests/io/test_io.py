@@ -448,3 +448,29 @@ def test_machine_limits_in_an_inch_study_and_the_shipped_studies_pass(tmp_path):
 )  # fmt: skip
 def test_a_feature_coordinate_beyond_any_part_is_named_at_study_load(tmp_path, old, new, pattern):
     _refused_after_edit(tmp_path, old, new, pattern)
+
+
+def test_the_probe_files_of_a_run_are_a_tuple_and_a_comma_in_a_name_stays(tmp_path):
+    """`ProbeData.file` of several files is the tuple of their paths (it was their names
+    joined by commas, which a name with a comma split wrongly); messages show them."""
+    from piecs_bayes.errors import shown_files
+    from piecs_bayes.jobs import load_probe_data
+
+    path = write_study(tmp_path, csv=GOOD_CSV)
+    (tmp_path / "a,b.csv").write_text(GOOD_CSV.replace("26.02,-15", "26.03,-15"))
+    study = load_study(path)
+    files = (tmp_path / "a,b.csv", tmp_path / "p.csv")
+    probe = load_probe_data(study, files)
+    assert probe.file == tuple(map(str, files)) and probe.parts == ("a,b", "p")
+    assert probe.file_text == f"{files[0]}, {files[1]}"
+    one = read_probe_csv(tmp_path / "p.csv")
+    assert one.file == (str(tmp_path / "p.csv"),) and one.for_part("p").file == one.file
+    with pytest.raises(InputError, match="the probe data hold 2 parts") as exc:
+        fit_study(study, probe)
+    assert exc.value.file == probe.file
+    assert str(exc.value).startswith(f"{files[0]}, {files[1]}: the probe data hold 2 parts")
+    single = InputError("x", file=(str(files[0]),))
+    assert single.file == str(files[0]) and str(single) == f"{files[0]}: x"
+    many = [f"p{i:02d},x.csv" for i in range(5)]
+    assert shown_files(many) == "p00,x.csv, ..., p04,x.csv (5 files)"
+    assert shown_files("a,b,c,d,e.csv") == "a,b,c,d,e.csv"
