@@ -180,8 +180,8 @@ def drop_duplicates(probe, *, policy: str = "drop"):
             feature=fid,
         )
     warnings.warn(
-        f"{probe.file_text}: dropped {int(dup.sum())} repeated trigger(s) with identical coordinates "
-        f"({where}, feature {fid!r}); each counts once",
+        f"{probe.file_text}: dropped {int(dup.sum())} repeated trigger(s) with identical "
+        f"coordinates ({where}, feature {fid!r}); each counts once",
         PlausibilityWarning,
         stacklevel=2,
     )

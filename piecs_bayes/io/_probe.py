@@ -97,7 +97,8 @@ class ProbeData:
     def __repr__(self) -> str:
         feats = dict(zip(*np.unique(self.feature, return_counts=True), strict=True))
         body = ", ".join(f"{k}: {v}" for k, v in feats.items())
-        return f"ProbeData({self.file_text!r}, {len(self)} points, parts={len(self.parts)}, {{{body}}})"
+        n, parts = len(self), len(self.parts)
+        return f"ProbeData({self.file_text!r}, {n} points, parts={parts}, {{{body}}})"
 
 
 def _lines_without_comments(text: str):
