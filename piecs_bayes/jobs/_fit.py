@@ -60,6 +60,9 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
             ball_radius=study.probe.ball_radius,
             max_correction=study.compensation.max_correction,
             settings=study.plausibility,
+            study_file=str(study.path),
+            x_mode=study.probe.x_mode,
+            units=study.units,
         )
         for f in files
     ]

@@ -219,6 +219,7 @@ CLASSES = [
     # issue 29: an absurd study number is named with its key, at study load, not as
     # implausible probe points (or an overflowing fit)
     ("z_offset_absurd", "z_offset = -312.4873", "z_offset = 1e300", 2, "class_z_offset_absurd.toml: machine.z_offset: 1e+300 mm is a work offset beyond any machine's travel (expected |z_offset| <= 100 m, 100000 mm)"),
+    ("kind_named_in_study", 'kind = "external"', 'kind = "internal"', 2, "class_kind_named_in_study.toml: profile.kind: 'internal' does not fit the probe data: the ball centres of part 'probe_part01' lie on the material side of an internal profile"),
     ("feature_end_absurd", "end = [44.0000, -90.0000]", "end = [44, -1e300]", 2, "class_feature_end_absurd.toml, feature 'dia_44': profile.feature[6].end: z = -1e+300 is beyond any plausible part size"),
 ]  # fmt: skip
 
@@ -255,6 +256,9 @@ def test_probe_classes(capsys, demo_copy):
         study = _study_variant(demo_copy, f"s_{name}.toml", "probe_part01.csv", f"p_{name}.csv")
         rc, text = _run(capsys, ["fit", study, "-q", "--out", demo_copy / f"o_{name}"])
         assert rc == 2 and f"p_{name}.csv:{head + 3}" in text and "implausible" in text, text
+        if name == "huge":  # the file's X as written, a diameter (not the halved 5e+299)
+            quoted = "implausible probe point of part 'p_huge': x = 1e+300 (a diameter), z = "
+            assert f"p_huge.csv:{head + 3}, feature 'face_end': {quoted}" in text, text
     # every row twice: used once, said so
     rows = lines[: head + 1] + [r for r in lines[head + 1 :] for _ in (0, 1)]
     (demo_copy / "p_dup.csv").write_text("\n".join(rows) + "\n")

@@ -474,3 +474,45 @@ def test_the_probe_files_of_a_run_are_a_tuple_and_a_comma_in_a_name_stays(tmp_pa
     many = [f"p{i:02d},x.csv" for i in range(5)]
     assert shown_files(many) == "p00,x.csv, ..., p04,x.csv (5 files)"
     assert shown_files("a,b,c,d,e.csv") == "a,b,c,d,e.csv"
+
+
+def test_a_wrong_profile_kind_is_named_with_the_study_file_and_key(tmp_path):
+    """Shaft data under `kind = "internal"`: the probe file is fine, the study's kind is
+    not; the error names the study file and `profile.kind` first, then the worst point."""
+    from piecs_bayes.jobs import load_probe_data
+
+    path = write_study(tmp_path, profile_extra='kind = "internal"\n', csv=GOOD_CSV)
+    with pytest.raises(InputError) as exc:
+        load_probe_data(load_study(path))
+    text = str(exc.value)
+    assert exc.value.file == str(path) and exc.value.value == "internal", text
+    assert text.startswith(
+        f"{path}: profile.kind: 'internal' does not fit the probe data: the ball centres "
+        "of part 'p' lie on the material side of an internal profile (3 of 3 points"
+    ), text
+    assert f"the worst at {tmp_path / 'p.csv'}:3, feature 'dia': x = 26.02 (a diameter)" in text
+    assert text.endswith('for a shaft, write [profile] kind = "external"'), text
+
+
+@pytest.mark.parametrize(
+    "units, x_mode, cell, shown",
+    [
+        ("mm", "diameter", "1e300", "x = 1e+300 (a diameter), z = -15 in the file"),
+        ("in", "radius", "-2.5e7", "x = -25000000 (a radius), z = -15 in the file"),
+    ],
+)
+def test_an_implausible_point_quotes_x_as_the_file_writes_it(tmp_path, units, x_mode, cell, shown):
+    """x = 1e300 among valid points: the message gave '+5e+299 mm from its nominal' (the
+    halved diameter in mm); it quotes the file's value and says it is a diameter."""
+    from piecs_bayes.jobs import load_probe_data
+
+    csv = GOOD_CSV.replace("26.02,-15", f"{cell},-15")  # the worst point: line 4
+    path = write_study(tmp_path, units=units, csv=csv)
+    if x_mode == "radius":
+        path.write_text(path.read_text().replace("[probe]\n", '[probe]\nx_mode = "radius"\n'))
+    study = load_study(path)
+    with pytest.raises(InputError, match="implausible probe point") as exc:
+        load_probe_data(study)
+    assert f"p.csv:4, feature 'dia': implausible probe point of part 'p': {shown}: " in str(
+        exc.value
+    ), str(exc.value)
