@@ -387,3 +387,19 @@ def test_a_signal_leaves_no_partial_output(tmp_path, sig, code):
     assert not [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]
     assert not (out / "posterior.nc").exists()  # never half-written
     assert _digest(tmp_path) == before
+
+
+def test_a_closed_reader_is_a_quiet_stop(tmp_path):
+    """`piecs-bayes gcode check ... | head -1` printed "stopped: standard output was
+    closed (broken pipe)" and exited 1; Unix tools stop quietly with 128 + SIGPIPE."""
+    r, w = os.pipe()
+    os.close(r)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _CHILD, "gcode", "check", str(DEMO / "finish.ngc"),
+         "--nose-radius", "0.4"],
+        cwd=tmp_path, stdout=w, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "JAX_PLATFORMS": "cpu", "MPLBACKEND": "Agg"},
+    )  # fmt: skip
+    os.close(w)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 141 and err == "", (proc.returncode, err)
