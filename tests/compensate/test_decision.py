@@ -286,7 +286,7 @@ def test_best_action_ties_to_rounding_go_to_the_first_listed():
 def test_more_points_grow_the_degrees_of_freedom():
     """A line from n = 5 points has dof = n - 2 = 3; with n' points it has n' - 2, and
     the count of more points is the smallest n' - n that a direct decision with sd
-    * sqrt(n / n') and dof n' - 2 decides (it kept dof = 3: 30 more points, not 11)."""
+    * sqrt(n / n') and dof n' - 2 decides (it kept dof = 3: 15 more points, not 6)."""
     n, p, mean, sd = 5, 2, 0.009, 0.006
     d = decide(tolerance=TOL, mean=mean, sd=sd, n_points=n, dof=float(n - p))
     assert d.verdict == "measure more"
