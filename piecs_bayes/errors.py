@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-__all__ = ["PiecsError", "InputError", "AnalysisError"]
+import os
+
+__all__ = ["PiecsError", "InputError", "AnalysisError", "shown_files"]
 
 
 class PiecsError(Exception):
@@ -16,20 +18,25 @@ class InputError(PiecsError, ValueError):
 
     - `message`: what is wrong and what was expected.
     - `file`, `line`, `column`, `feature`, `value`: where, when known. They are
-      kept as attributes and prefixed to the message as ``file:line: column 'c':``
-      (more than three files, comma-joined, as the first, the last and a count).
+      kept as attributes and prefixed to the message as ``file:line: column 'c':``.
+      `file` is a path or a sequence of paths (the probe files of a run, e.g.
+      `ProbeData.file`): one is kept as that path, several as a tuple of them all,
+      shown as `shown_files` does (more than three: the first, the last and a count).
     """
 
     def __init__(
         self,
         message: str,
         *,
-        file: str | None = None,
+        file: str | os.PathLike | tuple | list | None = None,
         line: int | None = None,
         column: str | None = None,
         feature: str | None = None,
         value: object = None,
     ):
+        if file is not None and not isinstance(file, (str, os.PathLike)):
+            names = tuple(str(f) for f in file)
+            file = names[0] if len(names) == 1 else names
         self.file = file
         self.line = line
         self.column = column
@@ -38,7 +45,7 @@ class InputError(PiecsError, ValueError):
         self.reason = message
         where = []
         if file is not None:
-            shown = _files(str(file))
+            shown = shown_files(file)
             where.append(f"{shown}:{line}" if line is not None else shown)
         elif line is not None:
             where.append(f"line {line}")
@@ -50,12 +57,16 @@ class InputError(PiecsError, ValueError):
         super().__init__(f"{prefix}: {message}" if prefix else message)
 
 
-def _files(file: str) -> str:
-    """`file` as a message shows it: the probe files of a run (joined by commas,
-    `jobs.load_probe_data`) as the first, the last and how many; the `file`
-    attribute keeps them all."""
-    names = file.split(",")
-    return file if len(names) <= 3 else f"{names[0]}, ..., {names[-1]} ({len(names)} files)"
+def shown_files(file) -> str:
+    """A path, or a sequence of paths (the probe files of a run), as a message shows
+    it: up to three joined by ", ", more as the first, the last and how many (a name
+    may hold a comma: it is never split)."""
+    if isinstance(file, (str, os.PathLike)):
+        return str(file)
+    names = [str(f) for f in file]
+    if len(names) <= 3:
+        return ", ".join(names)
+    return f"{names[0]}, ..., {names[-1]} ({len(names)} files)"
 
 
 class AnalysisError(PiecsError, RuntimeError):

@@ -93,10 +93,16 @@ def _os_error(exc: OSError) -> str:
     return f"{where}{what}"
 
 
+#: exit status of a command whose reader closed standard output: 128 + SIGPIPE, as a
+#: Unix tool killed by the signal reports it (`| head -1`)
+_BROKEN_PIPE = 128 + signal.SIGPIPE
+
+
 def main(argv=None) -> int:
     """Run one command; every failure is one line on stderr and an exit code:
     0 ok, 1 the analysis failed, 2 bad input or usage (argparse), 130 interrupted
-    (Ctrl-C), 143 terminated (SIGTERM). ``--debug`` shows the traceback instead."""
+    (Ctrl-C), 143 terminated (SIGTERM), 141 (no message) when the reader of standard
+    output went away (`| head -1`). ``--debug`` shows the traceback instead."""
     import traceback
     import warnings
 
@@ -130,14 +136,15 @@ def main(argv=None) -> int:
         _say_error("terminated", "stopped by SIGTERM; no partial output was left")
         return 143
     except BrokenPipeError:
-        # the reader of our output went away (`| head`): quiet, and no second error at exit
+        # the reader of our output went away (`| head -1`): stop quietly as Unix tools do,
+        # with 128 + SIGPIPE and no message; standard output goes to /dev/null so that
+        # the interpreter's flush at exit does not print "Exception ignored ..."
         try:
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
         except (OSError, ValueError):
             pass
-        _say_error("stopped", "standard output was closed (broken pipe)")
-        return 1
+        return _BROKEN_PIPE
     except UnicodeDecodeError as exc:
         if debug:
             raise

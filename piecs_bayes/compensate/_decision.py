@@ -26,8 +26,9 @@ coverage factor is $t_\\nu$ at the probability $k_\\text{cov}$ has under the nor
 3. `measure more` otherwise: the uncertainty is too large against the tolerance to
    demonstrate conformance or significance. The number of extra probe points that
    would decide it assumes the random part of $u$ shrinks as $1/\\sqrt n$ (a
-   systematic part `u_systematic` does not); when no number of points decides, the
-   Bayes action is taken and the reason says so.
+   systematic part `u_systematic` does not) and, with finite $\\nu$, that its
+   degrees of freedom grow by one per added point (`_grown_dof`); when no number of
+   points decides, the Bayes action is taken and the reason says so.
 
 **As drawn.** The numbers are normal deviations; `coordinate` and `scale` say how the
 tolerance is drawn (`geometry.drawn_scale`: 2 on a diameter) so that the reasons and
@@ -171,12 +172,32 @@ class Decision:
 # --------------------------------------------------------------------------- more points
 
 
-def _scaled(m0, s0, samples, u_sys, n, n_new):
+def _grown_dof(dof: float, sd: float, u_sys: float, n: int, n_new: int) -> float:
+    """The effective dof of an estimate of `sd` from `n` points (`dof`, of which `u_sys`
+    is systematic, Type B) when it rests on `n_new` points: the random part's dof
+    $\\nu_A = \\nu\\,(u_A/u)^4$ (Welch-Satterthwaite read backwards) grows by the
+    added points, each a residual dof of the pooled sigma ($n - p$ grows as $n$), and
+    $\\nu' = \\nu_A'\\,(u'/u_A')^4$ with $u_A'^2 = u_A^2\\,n/n'$."""
+    rand2 = max(sd**2 - u_sys**2, 0.0)
+    if not math.isfinite(dof) or rand2 <= 0.0:
+        return dof
+    nu_a = dof * (rand2 / sd**2) ** 2 + (n_new - n)
+    rand2_new = rand2 * n / n_new
+    return nu_a * ((rand2_new + u_sys**2) / rand2_new) ** 2
+
+
+def _scaled(m0, s0, samples, u_sys, n, n_new, dof):
+    """`(sd, samples, dof)` of the estimate from `n_new` points: the random part of the
+    sd shrinks as 1/sqrt(n) and its dof grows (`_grown_dof`); the t draws of a finite dof
+    are drawn again at the new dof."""
     rand2 = max(s0**2 - u_sys**2, 0.0)
     s_new = math.sqrt(rand2 * n / n_new + u_sys**2)
+    dof_new = _grown_dof(dof, s0, u_sys, n, n_new)
+    if math.isfinite(dof):  # the samples are t quantiles (`_checked_inputs`)
+        return s_new, m0 + s_new * _T_QUANTILES(dof_new), dof_new
     if samples is None:
-        return s_new, None
-    return s_new, m0 + (samples - m0) * (s_new / s0 if s0 > 0 else 1.0)
+        return s_new, None, dof_new
+    return s_new, m0 + (samples - m0) * (s_new / s0 if s0 > 0 else 1.0), dof_new
 
 
 def _more_points(m0, s0, samples, u_sys, n, tol, st, k, band, max_corr, t, dof) -> int | None:
@@ -184,11 +205,11 @@ def _more_points(m0, s0, samples, u_sys, n, tol, st, k, band, max_corr, t, dof) 
     cands = sorted({min(n_max, int(math.ceil(n * 1.08**j))) for j in range(1, 200)} - {n})
     prev = n
     for n_new in cands:
-        s_new, smp = _scaled(m0, s0, samples, u_sys, n, n_new)
-        if clear_verdict(_evaluate(m0, s_new, smp, tol, st, k, band, max_corr, t, dof)):
+        s_new, smp, d_new = _scaled(m0, s0, samples, u_sys, n, n_new, dof)
+        if clear_verdict(_evaluate(m0, s_new, smp, tol, st, k, band, max_corr, t, d_new)):
             for n_try in range(prev + 1, n_new):  # the smallest decisive count
-                s_try, smp = _scaled(m0, s0, samples, u_sys, n, n_try)
-                core = _evaluate(m0, s_try, smp, tol, st, k, band, max_corr, t, dof)
+                s_try, smp, d_try = _scaled(m0, s0, samples, u_sys, n, n_try, dof)
+                core = _evaluate(m0, s_try, smp, tol, st, k, band, max_corr, t, d_try)
                 if clear_verdict(core) is not None:
                     return n_try - n
             return n_new - n

@@ -117,12 +117,63 @@ def axial_air(kind: str):
     return air
 
 
+def _axial_move(m) -> bool:
+    return not m.is_arc and abs(m.end[1] - m.start[1]) > 2.0 * abs(m.end[0] - m.start[0])
+
+
+def _beside(p, run) -> str | None:
+    """Where an air point `p` lies against the run's contour at its own Z: "external"
+    above it, "internal" below, None outside the contour's Z span (in front of or
+    behind the part, where the air surrounds both an OD and a bore) or within it."""
+    z_lo = min(min(n.start[1], n.end[1]) for n in run)
+    z_hi = max(max(n.start[1], n.end[1]) for n in run)
+    eps = 1e-6 * max(1.0, abs(z_lo), abs(z_hi))
+    if not z_lo + eps < p[1] < z_hi - eps:
+        return None
+    xs = []
+    for n in run:  # the contour's X at p's Z (chords of arcs)
+        (x0, z0), (x1, z1) = n.start, n.end
+        if min(z0, z1) - eps <= p[1] <= max(z0, z1) + eps:
+            xs += [x0, x1] if abs(z1 - z0) <= eps else [x0 + (x1 - x0) * (p[1] - z0) / (z1 - z0)]
+    if xs and p[0] > max(xs) + eps:
+        return "external"
+    if xs and p[0] < min(xs) - eps:
+        return "internal"
+    return None
+
+
+def _nose_side(run) -> str | None:
+    """The kind the run's G41/G42 side says: the nose is in the air, above an OD contour
+    and below a bore; each axial move votes by its length (None on a tie)."""
+    length = {"external": 0.0, "internal": 0.0}
+    for n in run:
+        if not _axial_move(n):
+            continue
+        side = n.comp.side
+        if n.comp.diameter_mm is not None and n.comp.diameter_mm < 0:
+            side = "left" if side == "right" else "right"
+        dz = n.end[1] - n.start[1]
+        nose_up = (dz > 0) == (side == "left")  # left of +Z travel is +X (z right, x up)
+        length["external" if nose_up else "internal"] += abs(dz)
+    if length["external"] == length["internal"]:
+        return None
+    return max(length, key=length.get)
+
+
 def infer_kind(program) -> str | None:
-    """``"external"``/``"internal"`` from where the tool comes from and goes to: the
-    start of each compensation run's entry move and the end of its departure move,
-    above every axial compensated move of the run (an OD contour) or below all of
-    them (a bore). None unless every such point agrees (a finish cut that starts
-    in front of the end face and leaves upward says nothing)."""
+    """``"external"``/``"internal"`` for a program's compensation runs, or None.
+
+    The tool is in the air, the material beyond the contour. First, where the tool
+    comes from and goes to: the start of a run's entry move and the end of its
+    departure move, where such a point lies beside the contour (within its Z span)
+    above it (an OD) or below it (a bore). A point in front of the part or behind it
+    says nothing: air surrounds both there, so a bore entered from above the face and
+    left behind the part reads like an OD. A run with no such point is read from its
+    G41/G42 side and the travel direction of its axial moves (nose above the contour
+    on the air side of an OD, below it in a bore; the majority of their length), so
+    that `check_comp_sides` still refuses a move whose side contradicts the rest. None
+    unless every run agrees.
+    """
     moves = list(program.moves)
     votes = set()
     for i, m in enumerate(moves):
@@ -133,20 +184,14 @@ def infer_kind(program) -> str | None:
             if n.comp is None:
                 break
             run.append(n)
-        axial = [
-            n
-            for n in run
-            if not n.is_arc and abs(n.end[1] - n.start[1]) > 2.0 * abs(n.end[0] - n.start[0])
-        ]
-        if not axial:
+        if not any(_axial_move(n) for n in run):
             continue
-        xs = [v for n in axial for v in (n.start[0], n.end[0])]
         j = i + 1 + len(run)
-        for p in [m.start] + ([moves[j].end] if j < len(moves) else []):
-            if p[0] > max(xs):
-                votes.add("external")
-            elif p[0] < min(xs):
-                votes.add("internal")
+        points = [m.start] + ([moves[j].end] if j < len(moves) else [])
+        seen = {k for k in (_beside(p, run) for p in points) if k is not None}
+        if not seen:
+            seen = {k for k in (_nose_side(run),) if k is not None}
+        votes |= seen
     return votes.pop() if len(votes) == 1 else None
 
 

@@ -34,7 +34,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import machine_to_part
+from ..geometry import machine_to_part, profile_side
 
 __all__ = ["PlausibilityWarning", "check_probe_data", "drop_duplicates", "feature_limits"]
 
@@ -100,6 +100,13 @@ def _violations(profile, feature, pts, ball_radius, limits):
     return bad, dist, beyond
 
 
+#: the likely cause that is the study's `[profile] kind` (named with the study file)
+_KIND_CAUSE = (
+    "the ball centres lie on the material side of the profile: check [profile] kind "
+    "(external for a shaft, internal for a bore)"
+)
+
+
 def _likely_cause(profile, feature, machine, transform, ball_radius, limits, dist) -> str:
     """The setup mistake that explains the data, tried on every point of the part."""
     t = transform
@@ -120,10 +127,7 @@ def _likely_cause(profile, feature, machine, transform, ball_radius, limits, dis
             return "the Z work offset has the wrong sign: check [machine] z_offset"
     inside = np.abs(dist + 2.0 * ball_radius) <= 0.5 * ball_radius  # centres inside
     if np.mean(inside) > 0.5:
-        return (
-            "the ball centres lie on the material side of the profile: check [profile] kind "
-            "(external for a shaft, internal for a bore)"
-        )
+        return _KIND_CAUSE
     for f in profile.features:
         m = feature == f.id
         if f.kind == "arc" and m.any() and np.median(np.abs(dist[m] + 2 * ball_radius)) < 0.05:
@@ -169,7 +173,6 @@ def drop_duplicates(probe, *, policy: str = "drop"):
         return probe
     i = int(np.flatnonzero(dup)[0])
     j = int(rows[first[inverse.reshape(-1)[np.searchsorted(rows, i)]]])
-    files = probe.file.split(",")
     where = f"line {int(probe.lines[i])} repeats line {int(probe.lines[j])}"
     fid = str(probe.feature[i])
     if policy == "error":
@@ -177,22 +180,56 @@ def drop_duplicates(probe, *, policy: str = "drop"):
             f"{int(dup.sum())} repeated trigger(s) ({where}, feature {fid!r}): a "
             "trigger counted twice shrinks every uncertainty; remove them or set "
             '[plausibility] duplicates = "drop"',
-            file=files[0] if len(files) == 1 else probe.file,
+            file=probe.file,
             feature=fid,
         )
     warnings.warn(
-        f"{probe.file}: dropped {int(dup.sum())} repeated trigger(s) with identical coordinates "
-        f"({where}, feature {fid!r}); each counts once",
+        f"{probe.file_text}: dropped {int(dup.sum())} repeated trigger(s) with identical "
+        f"coordinates ({where}, feature {fid!r}); each counts once",
         PlausibilityWarning,
         stacklevel=2,
     )
     return probe.select(~dup)
 
 
-def check_probe_data(probe, profile, *, transform, ball_radius, max_correction, settings=None):
+def _kind(profile) -> str:
+    """The profile's `[profile] kind`, from its features' side of the material."""
+    specs = [
+        {"p0": f.p0, "p1": f.p1, **({"center": f.center, "ccw": f.ccw} if f.kind == "arc" else {})}
+        for f in profile.features
+    ]
+    return "external" if profile.features[0].side == profile_side(specs) else "internal"
+
+
+def _as_written(point, x_mode: str, units: str) -> str:
+    """A machine point (mm, radius X) as the probe file writes it."""
+    k = 25.4 if units == "in" else 1.0
+    x, z = float(point[0]) / k, float(point[1]) / k
+    if x_mode == "diameter":
+        return f"x = {2.0 * x:.10g} (a diameter), z = {z:.10g} in the file"
+    return f"x = {x:.10g} (a radius), z = {z:.10g} in the file"
+
+
+def check_probe_data(
+    probe,
+    profile,
+    *,
+    transform,
+    ball_radius,
+    max_correction,
+    settings=None,
+    study_file=None,
+    x_mode: str = "radius",
+    units: str = "mm",
+):
     """Duplicates handled (see `drop_duplicates`), then every point checked (module doc).
 
-    **Returns:** the probe data to fit. **Raises:** `InputError` for an implausible point.
+    `study_file` names the study in an error whose likely cause is its `[profile]
+    kind`; `x_mode` and `units` (the study's `[probe] x_mode` and `[study] units`) say
+    how the file wrote the point a message quotes.
+
+    **Returns:** the probe data to fit. **Raises:** `InputError` for an implausible point
+    (naming the study file and `profile.kind` first when that is the likely cause).
     """
     settings = dict(settings or {})
     probe = drop_duplicates(probe, policy=settings.get("duplicates", "drop"))
@@ -220,12 +257,24 @@ def check_probe_data(probe, profile, *, transform, ball_radius, max_correction, 
         what = f"ball centre {dist[i]:+.4g} mm from its nominal place (limit {lim_d:.3g} mm: {why})"
     else:
         what = f"point {beyond[i]:.4g} mm beyond the end of the feature (limit {lim_o:.3g} mm)"
-    files = probe.file.split(",")
+    what = f"{_as_written(probe.points[i], x_mode, units)}: {what}"
     n_bad, n_part = int(bad[sel].sum()), int(sel.sum())
+    if cause == _KIND_CAUSE and study_file is not None:
+        kind = _kind(profile)
+        other = "internal" if kind == "external" else "external"
+        raise InputError(
+            f"profile.kind: {kind!r} does not fit the probe data: the ball centres of part "
+            f"{str(part)!r} lie on the material side of an {kind} profile ({n_bad} of "
+            f"{n_part} points beyond the limits; the worst at {probe.file_text}:"
+            f"{int(probe.lines[i])}, feature {fid!r}: {what}); for "
+            f'{"a bore" if other == "internal" else "a shaft"}, write [profile] kind = "{other}"',
+            file=study_file,
+            value=kind,
+        )
     raise InputError(
         f"implausible probe point of part {str(part)!r}: {what}; {n_bad} of {n_part} points "
         f"of the part are beyond the limits; likely cause: {cause}",
-        file=files[0] if len(files) == 1 else probe.file,
+        file=probe.file,
         line=int(probe.lines[i]),
         feature=fid,
         value=float(dist[i]),

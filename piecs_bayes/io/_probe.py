@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, shown_files
 from ._fastcsv import read_rows, split_lines
 from ._text import decode, read_bytes
 
@@ -37,13 +37,17 @@ _MM_PER = {"mm": 1.0, "in": 25.4}
 
 @dataclass(frozen=True, eq=False)
 class ProbeData:
-    """Probe triggers of one file, in millimetres, X as radius, machine frame.
+    """Probe triggers of one file (or of several, concatenated), in millimetres, X as
+    radius, machine frame.
 
-    ``points`` is ``(n, 2)`` ``(x, z)`` ball centres; ``lines`` the 1-based file
-    line of each row (for messages); ``approach`` ``(n, 2)`` or None.
+    ``file`` is the tuple of the files' paths (as given; one for `read_probe_csv`,
+    each of a run for `jobs.load_probe_data`; a single path given is made a 1-tuple)
+    and ``file_text`` how messages show it; ``points`` is ``(n, 2)`` ``(x, z)`` ball
+    centres; ``lines`` the 1-based file line of each row (for messages);
+    ``approach`` ``(n, 2)`` or None.
     """
 
-    file: str
+    file: tuple[str, ...]
     feature: np.ndarray
     points: np.ndarray
     lines: np.ndarray
@@ -51,6 +55,16 @@ class ProbeData:
     approach: np.ndarray | None = None
     time: np.ndarray | None = None
     temperature: np.ndarray | None = None
+
+    def __post_init__(self):
+        f = self.file
+        files = (str(f),) if isinstance(f, (str, Path)) else tuple(str(p) for p in f)
+        object.__setattr__(self, "file", files)
+
+    @property
+    def file_text(self) -> str:
+        """The file(s) as a message shows them (`errors.shown_files`)."""
+        return shown_files(self.file)
 
     def __len__(self) -> int:
         return len(self.feature)
@@ -83,7 +97,8 @@ class ProbeData:
     def __repr__(self) -> str:
         feats = dict(zip(*np.unique(self.feature, return_counts=True), strict=True))
         body = ", ".join(f"{k}: {v}" for k, v in feats.items())
-        return f"ProbeData({self.file!r}, {len(self)} points, parts={len(self.parts)}, {{{body}}})"
+        n, parts = len(self), len(self.parts)
+        return f"ProbeData({self.file_text!r}, {n} points, parts={parts}, {{{body}}})"
 
 
 def _lines_without_comments(text: str):
@@ -171,7 +186,7 @@ def _read(path, units, x_mode, features, default_part, encoding, *, fast: bool) 
     pts = np.column_stack([np.array(cols["x"]) * xscale, np.array(cols["z"]) * scale])
     approach = _approach(cols, lines, name, header_line)
     return ProbeData(
-        file=name,
+        file=(name,),
         feature=_strings(cols["feature"]),
         points=pts,
         lines=np.array(lines, dtype=int),

@@ -55,6 +55,26 @@ _LENGTH_SOURCES = {"repeatability", "ball_radius", "pretravel", "x_centre", "z_o
 _DIST_LENGTH_KEYS = {"mean", "sd", "low", "high", "scale", "half_width", "loc"}
 _TRANSFORM_NAMES = ("x_centre", "z_offset", "scale_x", "scale_z", "rotation")
 
+#: the largest length a study may hold (mm): 100 m, beyond the travel of any lathe (the
+#: largest roll lathes turn some 20-30 m); a larger number is a typo or a unit slip, and
+#: one near 1e300 would overflow every fit
+MAX_LENGTH_MM = 1e5
+#: `[machine]` number -> (largest magnitude, its unit, what it is): offsets of a lathe
+#: within `MAX_LENGTH_MM`; axis scale errors are parts per million (a machine beyond
+#: 1 % is broken, not mis-scaled); the probe frame's rotation a small squareness error
+#: (0.01 rad = 0.57 deg, 1 mm over 100 mm)
+_TRANSFORM_LIMITS = {
+    "x_centre": (MAX_LENGTH_MM, "mm", "a centre-line offset beyond any machine's travel"),
+    "z_offset": (MAX_LENGTH_MM, "mm", "a work offset beyond any machine's travel"),
+    "scale_x": (0.01, "", "an X axis scale error above 1 % (a machine's is some ppm)"),
+    "scale_z": (0.01, "", "a Z axis scale error above 1 % (a machine's is some ppm)"),
+    "rotation": (
+        0.01,
+        "rad",
+        "a probe-frame rotation above 0.57 deg (a squareness error is some urad)",
+    ),
+}
+
 
 def _check_arc(r: Reader, spec: dict, path: str, fid: str) -> None:
     """An arc's start and end differ and lie at one distance from its centre."""
@@ -155,6 +175,16 @@ def _feature(r: Reader, f, i: int, scale: float, xscale: float) -> dict:
 
     def pt(key):
         x, z = r.point(f, key, path, fid)
+        for axis, v, mm in (("x", x, abs(x * xscale)), ("z", z, abs(z * scale))):
+            if mm > MAX_LENGTH_MM:
+                what = " (a diameter)" if axis == "x" and xscale != scale else ""
+                raise r.error(
+                    f"{path}{key}",
+                    f"{axis} = {v:g}{what} is beyond any plausible part size (expected "
+                    f"|{axis}| <= {MAX_LENGTH_MM / 1e3:g} m, {_in_units(MAX_LENGTH_MM, scale)})",
+                    feature=fid,
+                    value=v,
+                )
         return (x * xscale, z * scale)
 
     spec: dict[str, Any] = {"id": fid, "p0": pt("start"), "p1": pt("end")}
@@ -236,16 +266,34 @@ def read_probe(r: Reader, tree: dict, scale: float, profile: Profile) -> ProbeSp
     return probe
 
 
+def _in_units(mm: float, scale: float) -> str:
+    """A length in mm as the study writes it: ``100000 mm`` or ``3937 in``."""
+    return f"{mm:g} mm" if scale == 1.0 else f"{mm / scale:.4g} in"
+
+
 def read_machine(r: Reader, tree: dict, scale: float) -> MachineTransform:
-    """`[machine]`: the nominal probe-to-machine transform."""
+    """`[machine]`: the nominal probe-to-machine transform; each number finite and
+    within `_TRANSFORM_LIMITS` (an absurd one is named here, not as implausible probe
+    points)."""
     m = r.table(tree, "machine", "")
-    return MachineTransform(
-        x_centre=r.number(m, "x_centre", "machine.", 0.0) * scale,
-        z_offset=r.number(m, "z_offset", "machine.", 0.0) * scale,
-        scale_x=r.number(m, "scale_x", "machine.", 0.0),
-        scale_z=r.number(m, "scale_z", "machine.", 0.0),
-        rotation=r.number(m, "rotation", "machine.", 0.0),
-    )
+    values = {}
+    for key, (limit, unit, what) in _TRANSFORM_LIMITS.items():
+        val = r.number(m, key, "machine.", 0.0)
+        length = unit == "mm"
+        if abs(val * scale if length else val) > limit:
+            if length:
+                written = f"{val:g} {'mm' if scale == 1.0 else 'in'}"
+                shown = f"{limit / 1e3:g} m, {_in_units(limit, scale)}"
+            else:
+                written = f"{val:g}{' ' + unit if unit else ''}"
+                shown = f"{limit:g}{' ' + unit if unit else ''}"
+            raise r.error(
+                f"machine.{key}",
+                f"{written} is {what} (expected |{key}| <= {shown})",
+                value=val,
+            )
+        values[key] = val * scale if length else val
+    return MachineTransform(**values)
 
 
 def read_sources(r: Reader, tree: dict, scale: float) -> dict:
@@ -273,6 +321,8 @@ def read_sources(r: Reader, tree: dict, scale: float) -> dict:
                 raise r.error(f"{path}.{key}", f"expected a finite number, got {val!r}", value=val)
             if name in _LENGTH_SOURCES and key in _DIST_LENGTH_KEYS:
                 spec[key] = float(val) * scale
+            elif name in _LENGTH_SOURCES and key == "mu":  # a lognormal's log of a length
+                spec[key] = float(val) + math.log(scale)
         out[name] = MappingProxyType(spec)
     return out
 

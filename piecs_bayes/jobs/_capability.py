@@ -512,7 +512,7 @@ def capability_study(
     parts = probe.parts
     if len(parts) < 3:
         raise InputError(
-            f"a capability study needs at least 3 parts, got {len(parts)} in {probe.file}"
+            f"a capability study needs at least 3 parts, got {len(parts)} in {probe.file_text}"
         )
     notes = []
     used = method or study.fit.method

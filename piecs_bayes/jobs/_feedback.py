@@ -549,7 +549,7 @@ def feedback_study(study, *, probe=None, finish=None, progress=True) -> Feedback
     parts = probe.parts
     if len(parts) < 2:
         raise InputError(f"feedback needs a run of at least 2 parts, got {len(parts)} in "
-                         f"{probe.file}")  # fmt: skip
+                         f"{probe.file_text}")  # fmt: skip
     declared = _declared(study, parts, cfg)
     fin = _finish(study, finish, parts)
     if fin is not None:

@@ -60,6 +60,9 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
             ball_radius=study.probe.ball_radius,
             max_correction=study.compensation.max_correction,
             settings=study.plausibility,
+            study_file=str(study.path),
+            x_mode=study.probe.x_mode,
+            units=study.units,
         )
         for f in files
     ]
@@ -71,7 +74,7 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
         return None if any(v is None for v in vals) else np.concatenate(vals)
 
     return ProbeData(
-        file=",".join(d.file for d in datas),
+        file=tuple(f for d in datas for f in d.file),
         feature=cat("feature"),
         points=cat("points"),
         lines=cat("lines"),

@@ -16,6 +16,7 @@ import numpy as np
 from .. import __version__
 from ..compensate import CompensationTable, ErrorSpec, ToolOffsetUpdate, tool_offset_update
 from ..errors import AnalysisError, InputError
+from ..fit import coverage_factor
 from ..geometry import Arc, Line, part_to_machine
 from ..uncertainty import (
     Characteristic,
@@ -193,7 +194,9 @@ def tool_offsets(study, fit) -> tuple[ToolOffsetUpdate, tuple[str, ...]]:
     - R: the effective minus the table nose radius from the arcs' radius changes
       ($-s\\,\\Delta r$, $s$ = +1 convex, -1 concave: a larger nose moves every surface
       into the material), used with `nose_radius = "auto"` (default) only when it is
-      significant ($|e| > 2u$), always with `"always"`, never with `"off"`. When R
+      significant ($|e| > t_{0.975}(\\nu)\\,u$, $\\nu$ the degrees of freedom of the
+      probe sigma its covariance is scaled by, `fit.sigma.dof`; the normal 1.96 when
+      the sigma is known), always with `"always"`, never with `"off"`. When R
       changes, the X and Z errors it explains are taken off them (this assumes the
       finish cut uses G41/G42 nose-radius compensation).
 
@@ -220,7 +223,8 @@ def tool_offsets(study, fit) -> tuple[ToolOffsetUpdate, tuple[str, ...]]:
     xs, zs = mids("x_features", "x"), mids("z_features", "z")
     x_err, u_x, nx = _axis_error(xs, 0, notes)
     z_err, u_z, nz = _axis_error(zs, 1, notes)
-    r_err, u_r = _nose_radius_error(fitted, cfg.get("nose_radius", "auto"), notes)
+    dof = getattr(getattr(fit, "sigma", None), "dof", math.inf)
+    r_err, u_r = _nose_radius_error(fitted, cfg.get("nose_radius", "auto"), notes, dof)
     xs_factor = 2.0 if x_mode == "diameter" else 1.0
 
     def update(x_e, z_e):
@@ -411,8 +415,14 @@ def _check_agreement(xs, nxs, x_err: float, notes: list) -> None:
         )
 
 
-def _nose_radius_error(fitted, mode: str, notes: list):
-    """Effective minus table nose radius from the arcs' radius changes, or (None, None)."""
+def _dof_text(dof: float) -> str:
+    return "inf" if math.isinf(dof) else f"{dof:.3g}"
+
+
+def _nose_radius_error(fitted, mode: str, notes: list, dof: float = math.inf):
+    """Effective minus table nose radius from the arcs' radius changes, or (None, None)
+    when not significant: $|e| \\le t_{0.975}(\\nu)\\,u$ with $\\nu$ = `dof`, the
+    degrees of freedom of the probe sigma the arcs' covariances are scaled by."""
     arcs = [
         f
         for f in fitted.values()
@@ -425,7 +435,8 @@ def _nose_radius_error(fitted, mode: str, notes: list):
     w = 1.0 / u**2
     est, u_est = float(np.sum(w * e) / np.sum(w)), float(1.0 / math.sqrt(np.sum(w)))
     ids = ", ".join(f.id for f in arcs)
-    if mode == "always" or abs(est) > 2.0 * u_est:
+    k = coverage_factor(dof, 0.95)  # Student-t 97.5 % quantile (the normal's at inf)
+    if mode == "always" or abs(est) > k * u_est:
         notes.append(
             f"nose radius from {ids}: effective minus table radius {est * 1e3:+.2f} "
             f"± {u_est * 1e3:.2f} um"
@@ -433,6 +444,7 @@ def _nose_radius_error(fitted, mode: str, notes: list):
         return est, u_est
     notes.append(
         f"nose radius not updated: the radius change of {ids} gives "
-        f"{est * 1e3:+.2f} ± {u_est * 1e3:.2f} um, not significant (|e| <= 2u)"
+        f"{est * 1e3:+.2f} ± {u_est * 1e3:.2f} um, not significant (|e| <= {k:.3g} u, "
+        f"t 97.5 % at {_dof_text(dof)} dof)"
     )
     return None, None

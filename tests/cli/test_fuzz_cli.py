@@ -217,6 +217,11 @@ CLASSES = [
     ("bad_encoding", 'name = "Demo stepped shaft"', 'name = "Demo stepped shaft"\nencoding = "klingon"', 2, "unknown encoding"),
     ("prior_key", "sd = 0.0005 }", "sdd = 0.0005 }", 2, "did you mean 'sd'"),
     ("prior_dist", 'dist = "half_normal"', 'dist = "halfnorml"', 2, "unknown distribution"),
+    # issue 29: an absurd study number is named with its key, at study load, not as
+    # implausible probe points (or an overflowing fit)
+    ("z_offset_absurd", "z_offset = -312.4873", "z_offset = 1e300", 2, "class_z_offset_absurd.toml: machine.z_offset: 1e+300 mm is a work offset beyond any machine's travel (expected |z_offset| <= 100 m, 100000 mm)"),
+    ("kind_named_in_study", 'kind = "external"', 'kind = "internal"', 2, "class_kind_named_in_study.toml: profile.kind: 'internal' does not fit the probe data: the ball centres of part 'probe_part01' lie on the material side of an internal profile"),
+    ("feature_end_absurd", "end = [44.0000, -90.0000]", "end = [44, -1e300]", 2, "class_feature_end_absurd.toml, feature 'dia_44': profile.feature[6].end: z = -1e+300 is beyond any plausible part size"),
 ]  # fmt: skip
 
 
@@ -296,6 +301,9 @@ def test_probe_classes(capsys, demo_copy):
         study = _study_variant(demo_copy, f"s_{name}.toml", "probe_part01.csv", f"p_{name}.csv")
         rc, text = _run(capsys, ["fit", study, "-q", "--out", demo_copy / f"o_{name}"])
         assert rc == 2 and f"p_{name}.csv:{head + 3}" in text and "implausible" in text, text
+        if name == "huge":  # the file's X as written, a diameter (not the halved 5e+299)
+            quoted = "implausible probe point of part 'p_huge': x = 1e+300 (a diameter), z = "
+            assert f"p_huge.csv:{head + 3}, feature 'face_end': {quoted}" in text, text
     # every row twice: used once, said so
     rows = lines[: head + 1] + [r for r in lines[head + 1 :] for _ in (0, 1)]
     (demo_copy / "p_dup.csv").write_text("\n".join(rows) + "\n")
@@ -424,3 +432,19 @@ def test_a_signal_leaves_no_partial_output(tmp_path, sig, code):
     assert not [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]
     assert not (out / "posterior.nc").exists()  # never half-written
     assert _digest(tmp_path) == before
+
+
+def test_a_closed_reader_is_a_quiet_stop(tmp_path):
+    """`piecs-bayes gcode check ... | head -1` printed "stopped: standard output was
+    closed (broken pipe)" and exited 1; Unix tools stop quietly with 128 + SIGPIPE."""
+    r, w = os.pipe()
+    os.close(r)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _CHILD, "gcode", "check", str(DEMO / "finish.ngc"),
+         "--nose-radius", "0.4"],
+        cwd=tmp_path, stdout=w, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "JAX_PLATFORMS": "cpu", "MPLBACKEND": "Agg"},
+    )  # fmt: skip
+    os.close(w)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 141 and err == "", (proc.returncode, err)

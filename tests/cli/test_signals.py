@@ -1,13 +1,19 @@
 """A signal is never swallowed: handled inside a GC callback (where an exception is
 printed and ignored, e.g. JAX's after a long compiled call), it is raised again 50 ms
-later from SIGALRM, so the job still stops and unwinds (`cli._main._stop`)."""
+later from SIGALRM, so the job still stops and unwinds (`cli._main._stop`).
+
+A command whose reader goes away (`| head -1`) stops quietly, as Unix tools do: no
+message, exit status 141 (128 + SIGPIPE)."""
 
 from __future__ import annotations
 
 import gc
+import os
 import signal
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -49,3 +55,43 @@ def test_a_stop_inside_a_gc_callback_is_raised_later_outside_it():
             gc.callbacks.remove(callback)
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "data" / "demo"
+
+
+def _cli(argv, stdout) -> subprocess.Popen:
+    """The CLI in a child process (this checkout: PYTHONPATH as the tests run)."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "piecs_bayes.cli", *map(str, argv)],
+        stdout=stdout, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+        env={**os.environ, "JAX_PLATFORMS": "cpu", "MPLBACKEND": "Agg"},
+    )  # fmt: skip
+
+
+def test_a_reader_that_goes_away_stops_every_command_quietly_with_141(tmp_path):
+    # the reader gone before the first line (`gcode check ... | head -0`): the first write
+    # fails, whatever the timing
+    r, w = os.pipe()
+    os.close(r)
+    proc = _cli(["gcode", "check", DEMO / "finish.ngc", "--nose-radius", "0.4"], w)
+    os.close(w)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 141 and err == "", (proc.returncode, err)
+    # `fit ... | head -1`: the reader takes the first progress line and closes; the fit
+    # goes on (0.4 s or more to its next line) and stops at its next write
+    proc = _cli(["fit", DEMO / "study.toml", "--out", tmp_path / "out"], subprocess.PIPE)
+    try:
+        first = proc.stdout.readline()
+        proc.stdout.close()
+        err = proc.stderr.read()
+        proc.wait(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stderr.close()
+    assert first.startswith("[") and "read Study(" in first, first
+    assert proc.returncode == 141 and err == "", (proc.returncode, err)
+    assert not [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]

@@ -281,3 +281,21 @@ def test_best_action_ties_to_rounding_go_to_the_first_listed():
     assert _best_action(acts) == "full"
     acts[-1] = A(name="bayes", expected_loss=loss * (1 - 1e-6))
     assert _best_action(acts) == "bayes"
+
+
+def test_more_points_grow_the_degrees_of_freedom():
+    """A line from n = 5 points has dof = n - 2 = 3; with n' points it has n' - 2, and
+    the count of more points is the smallest n' - n that a direct decision with sd
+    * sqrt(n / n') and dof n' - 2 decides (it kept dof = 3: 15 more points, not 6)."""
+    n, p, mean, sd = 5, 2, 0.009, 0.006
+    d = decide(tolerance=TOL, mean=mean, sd=sd, n_points=n, dof=float(n - p))
+    assert d.verdict == "measure more"
+
+    def decided(n_new):
+        direct = decide(tolerance=TOL, mean=mean, sd=sd * math.sqrt(n / n_new), dof=n_new - p)
+        return direct.verdict != "measure more"
+
+    first = next(k for k in range(n + 1, 50 * n) if decided(k))
+    assert d.more_points == first - n
+    fixed = decide(tolerance=TOL, mean=mean, sd=sd * math.sqrt(n / first), dof=float(n - p))
+    assert fixed.verdict == "measure more"  # at the old fixed dof it was not decided yet

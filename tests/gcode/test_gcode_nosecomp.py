@@ -327,3 +327,25 @@ def test_writer_keeps_case_words_and_incremental_mode(tools):
 @pytest.fixture
 def tools():
     return read_tool_table(DATA / "tools.tbl", units="in")
+
+
+def test_infer_kind_reads_a_bore_entered_in_front_and_left_behind(tools):
+    """A ring's bore entered from above the face and left behind the part upward:
+    entry and exit lie above every axial move, which read as an OD and refused the
+    correct G41 ('use G42'); air surrounds both ends, so the nose side decides. Every
+    corpus program named for an OD or a bore is inferred as one, and a move whose side
+    contradicts the rest of its run is still refused."""
+    from piecs_bayes.gcode._nosecomp import infer_kind
+
+    ring = read_gcode(DATA / "29_bore_ring_in_front_and_behind_t2.ngc")
+    assert infer_kind(ring) == "internal"
+    nose_compensate(ring, tool_table=tools)  # not refused
+    for path in sorted(DATA.glob("*.ngc")):
+        words = path.stem.split("_")
+        want = "internal" if "bore" in words else "external" if "od" in words else None
+        if want is not None:
+            assert infer_kind(read_gcode(path)) == want, path.name
+    text = (DATA / "29_bore_ring_in_front_and_behind_t2.ngc").read_text()
+    back = text.replace("G1 X20.000 Z-12.000\n", "G1 X20.000 Z-12.000\nG1 X20.000 Z-11.000\n")
+    with pytest.raises(InputError, match=r"G41 \(line 6\) .* contour at line 10: .*use G42"):
+        nose_compensate(parse_gcode(back, name="back.ngc"), tool_table=tools)

@@ -339,3 +339,180 @@ def test_probe_rows_end_at_newlines_only(tmp_path):
     )
     d = read_probe_csv(p, x_mode="diameter")
     assert len(d) == 3 and list(d.lines) == [3, 4, 5]
+
+
+# --------------------------------------------------------------------------- issue 29
+
+UNIT_STUDY = """\
+[study]
+name = "t"
+units = "{units}"
+
+[profile]
+x_mode = "diameter"
+
+[[profile.feature]]
+id = "dia"
+type = "line"
+start = [{d}, 0.0]
+end = [{d}, {z}]
+tolerance = [{t0}, {t1}]
+tolerance_on = "diameter"
+
+[probe]
+ball_radius = {rb}
+repeatability = {rep}
+
+[machine]
+x_centre = {xc}
+z_offset = {zo}
+
+[uncertainty]
+repeatability = {{ dist = "lognormal", mu = {mu}, sigma = 0.3 }}
+ball_radius = {{ dist = "normal", mean = 0.0, sd = {sd} }}
+"""
+
+
+def _unit_study(tmp_path, units: str) -> Path:
+    """One study in mm or in inches, every length (the prior's too) the same in mm."""
+    k = 1.0 if units == "mm" else 25.4
+    lengths = dict(d=24.0, z=-30.0, t0=-0.01, t1=0.01, rb=1.0, rep=0.0015, xc=0.0021,
+                   zo=-312.4873, sd=0.0005)  # fmt: skip
+    path = tmp_path / f"{units}.toml"
+    path.write_text(
+        UNIT_STUDY.format(
+            units=units,
+            mu=repr(math.log(0.0015 / k)),
+            **{n: repr(v / k) for n, v in lengths.items()},
+        )
+    )
+    return path
+
+
+def test_an_inch_lognormal_prior_is_the_mm_one(tmp_path):
+    """mu is the log of a length: mu_mm = mu_in + ln(25.4) (sigma unchanged); the inch
+    study's prior is the mm study's: same parameters, log-density and samples."""
+    from piecs_bayes.fit import prior_from_spec
+
+    mm, inch = (load_study(_unit_study(tmp_path, u)) for u in ("mm", "in"))
+    assert inch.transform.z_offset == pytest.approx(mm.transform.z_offset, rel=1e-14)
+    assert inch.sources["ball_radius"]["sd"] == pytest.approx(0.0005, rel=1e-14)
+    a, b = (prior_from_spec("repeatability", dict(s.sources["repeatability"])) for s in (mm, inch))
+    assert (b.mu, b.sigma) == pytest.approx((a.mu, a.sigma), rel=1e-14, abs=1e-14)
+    assert math.exp(b.mu) == pytest.approx(0.0015, rel=1e-13)  # the median, in mm
+    x = np.linspace(2e-4, 5e-3, 25)
+    np.testing.assert_allclose(np.asarray(b.log_pdf(x)), np.asarray(a.log_pdf(x)), rtol=1e-12)
+    np.testing.assert_allclose(
+        b.sample(np.random.default_rng(3), 100), a.sample(np.random.default_rng(3), 100), rtol=1e-12
+    )
+
+
+@pytest.mark.parametrize(
+    "key, value, pattern",
+    [
+        ("z_offset", "1e300", r"machine\.z_offset: 1e\+300 mm is a work offset beyond any "
+         r"machine's travel \(expected \|z_offset\| <= 100 m, 100000 mm\)"),
+        ("x_centre", "-2e5", r"machine\.x_centre: -200000 mm is a centre-line offset beyond"),
+        ("scale_x", "0.5", r"machine\.scale_x: 0\.5 is an X axis scale error above 1 %"),
+        ("scale_z", "-1e300", r"machine\.scale_z: -1e\+300 is a Z axis scale error above 1 %"),
+        ("rotation", "0.2", r"machine\.rotation: 0\.2 rad is a probe-frame rotation above"),
+        ("rotation", "nan", r"machine\.rotation: expected a finite number, got nan"),
+    ],
+)  # fmt: skip
+def test_absurd_machine_numbers_are_named_at_study_load(tmp_path, key, value, pattern):
+    path = write_study(tmp_path, extra=f"\n[machine]\n{key} = {value}\n")
+    with pytest.raises(InputError, match=r"s\.toml: " + pattern) as exc:
+        load_study(path)
+    assert exc.value.file == str(path)
+
+
+def test_machine_limits_in_an_inch_study_and_the_shipped_studies_pass(tmp_path):
+    with pytest.raises(
+        InputError, match=r"machine\.z_offset: 4000 in is a work offset .*3937 in\)"
+    ):
+        load_study(write_study(tmp_path, units="in", extra="\n[machine]\nz_offset = 4000\n"))
+    load_study(write_study(tmp_path, units="in", extra="\n[machine]\nz_offset = 3900\n"))
+    for name in ("demo", "batch"):
+        load_study(DATA / name / "study.toml")
+
+
+@pytest.mark.parametrize(
+    "old, new, pattern",
+    [
+        ("end = [24.0, -30.0]", "end = [24.0, -1e300]",
+         r"feature 'dia': profile\.feature\[1\]\.end: z = -1e\+300 is beyond any plausible "
+         r"part size \(expected \|z\| <= 100 m, 100000 mm\)"),
+        ("start = [8.0, 0.0]", "start = [3e5, 0.0]",
+         r"feature 'face': profile\.feature\[0\]\.start: x = 300000 \(a diameter\) is beyond"),
+    ],
+)  # fmt: skip
+def test_a_feature_coordinate_beyond_any_part_is_named_at_study_load(tmp_path, old, new, pattern):
+    _refused_after_edit(tmp_path, old, new, pattern)
+
+
+def test_the_probe_files_of_a_run_are_a_tuple_and_a_comma_in_a_name_stays(tmp_path):
+    """`ProbeData.file` of several files is the tuple of their paths (it was their names
+    joined by commas, which a name with a comma split wrongly); messages show them."""
+    from piecs_bayes.errors import shown_files
+    from piecs_bayes.jobs import load_probe_data
+
+    path = write_study(tmp_path, csv=GOOD_CSV)
+    (tmp_path / "a,b.csv").write_text(GOOD_CSV.replace("26.02,-15", "26.03,-15"))
+    study = load_study(path)
+    files = (tmp_path / "a,b.csv", tmp_path / "p.csv")
+    probe = load_probe_data(study, files)
+    assert probe.file == tuple(map(str, files)) and probe.parts == ("a,b", "p")
+    assert probe.file_text == f"{files[0]}, {files[1]}"
+    one = read_probe_csv(tmp_path / "p.csv")
+    assert one.file == (str(tmp_path / "p.csv"),) and one.for_part("p").file == one.file
+    with pytest.raises(InputError, match="the probe data hold 2 parts") as exc:
+        fit_study(study, probe)
+    assert exc.value.file == probe.file
+    assert str(exc.value).startswith(f"{files[0]}, {files[1]}: the probe data hold 2 parts")
+    single = InputError("x", file=(str(files[0]),))
+    assert single.file == str(files[0]) and str(single) == f"{files[0]}: x"
+    many = [f"p{i:02d},x.csv" for i in range(5)]
+    assert shown_files(many) == "p00,x.csv, ..., p04,x.csv (5 files)"
+    assert shown_files("a,b,c,d,e.csv") == "a,b,c,d,e.csv"
+
+
+def test_a_wrong_profile_kind_is_named_with_the_study_file_and_key(tmp_path):
+    """Shaft data under `kind = "internal"`: the probe file is fine, the study's kind is
+    not; the error names the study file and `profile.kind` first, then the worst point."""
+    from piecs_bayes.jobs import load_probe_data
+
+    path = write_study(tmp_path, profile_extra='kind = "internal"\n', csv=GOOD_CSV)
+    with pytest.raises(InputError) as exc:
+        load_probe_data(load_study(path))
+    text = str(exc.value)
+    assert exc.value.file == str(path) and exc.value.value == "internal", text
+    assert text.startswith(
+        f"{path}: profile.kind: 'internal' does not fit the probe data: the ball centres "
+        "of part 'p' lie on the material side of an internal profile (3 of 3 points"
+    ), text
+    assert f"the worst at {tmp_path / 'p.csv'}:3, feature 'dia': x = 26.02 (a diameter)" in text
+    assert text.endswith('for a shaft, write [profile] kind = "external"'), text
+
+
+@pytest.mark.parametrize(
+    "units, x_mode, cell, shown",
+    [
+        ("mm", "diameter", "1e300", "x = 1e+300 (a diameter), z = -15 in the file"),
+        ("in", "radius", "-2.5e7", "x = -25000000 (a radius), z = -15 in the file"),
+    ],
+)
+def test_an_implausible_point_quotes_x_as_the_file_writes_it(tmp_path, units, x_mode, cell, shown):
+    """x = 1e300 among valid points: the message gave '+5e+299 mm from its nominal' (the
+    halved diameter in mm); it quotes the file's value and says it is a diameter."""
+    from piecs_bayes.jobs import load_probe_data
+
+    csv = GOOD_CSV.replace("26.02,-15", f"{cell},-15")  # the worst point: line 4
+    path = write_study(tmp_path, units=units, csv=csv)
+    if x_mode == "radius":
+        path.write_text(path.read_text().replace("[probe]\n", '[probe]\nx_mode = "radius"\n'))
+    study = load_study(path)
+    with pytest.raises(InputError, match="implausible probe point") as exc:
+        load_probe_data(study)
+    assert f"p.csv:4, feature 'dia': implausible probe point of part 'p': {shown}: " in str(
+        exc.value
+    ), str(exc.value)

@@ -557,3 +557,37 @@ def test_a_failed_part_fit_falls_back_or_is_left_out(monkeypatch):
     assert any(n.startswith("part02: robust fit failed") for n in cs.notes)
     assert any(n.startswith("part03: left out") for n in cs.notes)
     assert "notes:" in E.capability_text(cs)
+
+
+def test_the_nose_radius_significance_uses_t_at_the_sigma_dof(demo):
+    """|e| > t_0.975(nu) u, nu the dof of the probe sigma the arcs' covariances carry
+    (it was a fixed 2): e = 2.2 u is significant with a known sigma (1.96), not at 5
+    dof (t = 2.571); through `tool_offsets`, the fit's sigma dof is the one used."""
+    from types import SimpleNamespace
+
+    from scipy import stats
+
+    from piecs_bayes.jobs._machine import _nose_radius_error
+
+    study, fit = demo
+    arc = study.profile["fillet"]
+    u = 1e-3
+    fake = SimpleNamespace(
+        id="fillet", feature=arc, fixed=(), covariance=np.diag([1.0, 1.0, u**2]),
+        values=np.array([0.0, 0.0, -arc.sense * 2.2 * u]),
+    )  # fmt: skip
+    notes: list = []
+    assert _nose_radius_error({"fillet": fake}, "auto", notes, math.inf) == pytest.approx(
+        (2.2 * u, u)
+    )
+    notes = []
+    assert _nose_radius_error({"fillet": fake}, "auto", notes, 5.0) == (None, None)
+    k = stats.t.ppf(0.975, 5)
+    assert notes == [
+        f"nose radius not updated: the radius change of fillet gives +2.20 ± 1.00 um, "
+        f"not significant (|e| <= {k:.3g} u, t 97.5 % at 5 dof)"
+    ]
+    _, notes = D.tool_offsets(study, fit)
+    (note,) = [n for n in notes if n.startswith("nose radius")]
+    k = stats.t.ppf(0.975, fit.sigma.dof)
+    assert f"(|e| <= {k:.3g} u, t 97.5 % at {fit.sigma.dof:.3g} dof)" in note, note
