@@ -40,6 +40,11 @@ from ._offsets import g10_fanuc as g10_fanuc
 from ._offsets import g10_linuxcnc as g10_linuxcnc
 from ._offsets import offsets_from_json as offsets_from_json
 from ._offsets import offsets_to_json as offsets_to_json
+from ._plan_files import GAUGING_NAMES as GAUGING_NAMES
+from ._plan_files import plan_figure as plan_figure
+from ._plan_files import plan_json as plan_json
+from ._plan_files import plan_program as plan_program
+from ._plan_files import write_plan as write_plan
 from ._report import report_files as report_files
 from ._report_feedback import feedback_blocks as feedback_blocks
 from ._report_feedback import feedback_report_html as feedback_report_html
@@ -61,8 +66,3 @@ from ._tables import path_csv as path_csv
 from ._tables import posterior_csv as posterior_csv
 from ._tables import residuals_csv as residuals_csv
 from ._tables import to_csv as to_csv
-from ._plan_files import GAUGING_NAMES as GAUGING_NAMES
-from ._plan_files import plan_figure as plan_figure
-from ._plan_files import plan_json as plan_json
-from ._plan_files import plan_program as plan_program
-from ._plan_files import write_plan as write_plan

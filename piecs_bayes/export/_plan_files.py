@@ -81,13 +81,18 @@ def plan_json(plan) -> str:
         "controller": plan.settings["controller"],
         "frame": "part (the finish program's work coordinates)",
         "probe": {
-            "tool": study.probe.tool, "feed_per_min": _num(study.probe.feed, k),
+            "tool": study.probe.tool,
+            "feed_per_min": _num(study.probe.feed, k),
             "ball_radius": _num(study.probe.ball_radius, k),
             "repeatability": _num(study.probe.repeatability, k),
         },  # fmt: skip
         "settings": {
-            key: (_num(v, k) if key in ("clearance", "end_clearance", "overtravel", "spacing",
-                                        "stock", "rapid_feed") else v)
+            key: (
+                _num(v, k)
+                if key
+                in ("clearance", "end_clearance", "overtravel", "spacing", "stock", "rapid_feed")
+                else v
+            )
             for key, v in sorted(plan.settings.items())
         },  # fmt: skip
         "sigma_dof": _num(plan.dof),
@@ -95,15 +100,27 @@ def plan_json(plan) -> str:
         "travel": _num(plan.travel_mm, k),
         "home": pt(plan.home),
         "features": [
-            {"feature": f.feature, "window": [_num(f.window[0]), _num(f.window[1])],
-             "fractions": [_num(t) for t in f.fractions], "designed": pred(f.designed),
-             "uniform": pred(f.uniform)}
+            {
+                "feature": f.feature,
+                "window": [_num(f.window[0]), _num(f.window[1])],
+                "fractions": [_num(t) for t in f.fractions],
+                "designed": pred(f.designed),
+                "uniform": pred(f.uniform),
+            }
             for f in plan.features
         ],  # fmt: skip
         "points": [
-            {"index": p.index, "feature": p.feature, "t": _num(p.t), "contact": pt(p.contact),
-             "centre": pt(p.centre), "approach": [_num(p.approach[0]), _num(p.approach[1])],
-             "start": pt(p.start), "target": pt(p.target), "inside": p.inside}
+            {
+                "index": p.index,
+                "feature": p.feature,
+                "t": _num(p.t),
+                "contact": pt(p.contact),
+                "centre": pt(p.centre),
+                "approach": [_num(p.approach[0]), _num(p.approach[1])],
+                "start": pt(p.start),
+                "target": pt(p.target),
+                "inside": p.inside,
+            }
             for p in plan.points
         ],  # fmt: skip
     }
@@ -159,8 +176,9 @@ def write_plan(plan, out, *, protect=(), figure: bool = True) -> list[Path]:
 
         fig = plan_figure(plan)
         written.append(
-            write_file_atomic(out / "plan.png", lambda fh: fig.savefig(fh, format="png", dpi=120),
-                              protect=protect)  # fmt: skip
+            write_file_atomic(
+                out / "plan.png", lambda fh: fig.savefig(fh, format="png", dpi=120), protect=protect
+            )  # fmt: skip
         )
         plt.close(fig)
     return written

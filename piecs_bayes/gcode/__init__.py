@@ -17,6 +17,8 @@ from ._contour import ContourSegment as ContourSegment
 from ._contour import FinishContour as FinishContour
 from ._contour import compensation_runs as compensation_runs
 from ._contour import finish_contour as finish_contour
+from ._gauging import CONTROLLERS as CONTROLLERS
+from ._gauging import gauging_program as gauging_program
 from ._header import comment_style as comment_style
 from ._header import comment_text as comment_text
 from ._header import diff_labels as diff_labels
@@ -41,8 +43,6 @@ from ._nosecomp import compensated_path as compensated_path
 from ._nosecomp import correct_radius_error as correct_radius_error
 from ._nosecomp import nose_compensate as nose_compensate
 from ._nosecomp import tip_offset as tip_offset
-from ._gauging import CONTROLLERS as CONTROLLERS
-from ._gauging import gauging_program as gauging_program
 from ._rs274 import CanonMove as CanonMove
 from ._rs274 import Rs274Result as Rs274Result
 from ._rs274 import rs274_path as rs274_path

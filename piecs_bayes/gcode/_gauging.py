@@ -82,7 +82,9 @@ def gauging_program(
             f"Z{_coord(p[1], x=False, diameter=dia, inch=inch, decimals=dec)}"
         )
 
-    feed = format_number(feed_mm_min / (MM_PER_INCH if inch else 1.0), decimals=1 if not inch else 3)
+    feed = format_number(
+        feed_mm_min / (MM_PER_INCH if inch else 1.0), decimals=1 if not inch else 3
+    )
     fanuc = controller == "fanuc"
     out = ["%"]
     if fanuc:

@@ -93,6 +93,8 @@ def _value(v) -> str:
         return "true" if v else "false"
     if isinstance(v, str):
         return _string(v)
+    if isinstance(v, int):
+        return str(v)
     if isinstance(v, (int, float)):
         return toml_number(v)
     if isinstance(v, (list, tuple)):

@@ -245,6 +245,13 @@ def study_from_program(
         probe=(
             _ball_radius(ids, contour, ball_radius_mm, scale),
             Setting("x_mode", x_mode, "how the probe files write X"),
+            Setting("tool", 9, "placeholder: the probe's tool number (for plan)", commented=True),
+            Setting(
+                "feed",
+                200.0 / scale,
+                "placeholder: probing feed per minute, the calibration's",
+                commented=True,
+            ),
         ),
         program=(_nose_radius(contour, tool_table, tool_units, scale),),
     )

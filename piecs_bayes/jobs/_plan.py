@@ -234,7 +234,9 @@ def _feature_designs(study, s, windows, counts):
             ts, inside = designs[f.id][:2]
         pred = predict_feature(f, ts, ds, fixed=fx)
         uni = predict_feature(f, uniform_fractions(len(ts), windows[f.id]), ds, fixed=fx)
-        plans.append((f, ts, inside, FeaturePlan(f.id, windows[f.id], tuple(map(float, ts)), pred, uni)))
+        plans.append(
+            (f, ts, inside, FeaturePlan(f.id, windows[f.id], tuple(map(float, ts)), pred, uni))
+        )
     return plans, ds.dof
 
 
@@ -267,9 +269,7 @@ def plan_study(study, *, points=None, ratio=None, controller=None, counts=None):
     from ._plan_route import order_and_route
 
     home, ordered, path, travel, time_s = order_and_route(study, s, raw)
-    pts = tuple(
-        PlannedPoint(i + 1, *p) for i, p in enumerate(ordered)
-    )
+    pts = tuple(PlannedPoint(i + 1, *p) for i, p in enumerate(ordered))
     return ProbePlan(
         study=study, points=pts, features=tuple(p[3] for p in plans if p[3] is not None),
         home=home, path=path, settings=s, dof=dof, time_s=time_s, travel_mm=travel,
@@ -318,7 +318,9 @@ def plan_more(study, more: dict, probed: dict, *, controller=None):
         extra[f.id] = new
         both = np.sort(np.concatenate([have_t, new]))
         pred = predict_feature(f, both, ds, fixed=fixed.get(f.id, ()))
-        uni = predict_feature(f, uniform_fractions(both.size, windows[f.id]), ds, fixed=fixed.get(f.id, ()))
+        uni = predict_feature(
+            f, uniform_fractions(both.size, windows[f.id]), ds, fixed=fixed.get(f.id, ())
+        )
         plans.append(FeaturePlan(f.id, windows[f.id], tuple(map(float, new)), pred, uni))
     if not extra:
         raise InputError("no feature asks for more points: nothing to plan", file=str(study.path))

@@ -18,8 +18,8 @@ from ._characteristic import normal_deviation_at as normal_deviation_at
 from ._characteristic import normal_deviation_draws as normal_deviation_draws
 from ._characteristic import u_systematic as u_systematic
 from ._design import DesignSettings as DesignSettings
-from ._design import augment_fractions as augment_fractions
 from ._design import FeaturePrediction as FeaturePrediction
+from ._design import augment_fractions as augment_fractions
 from ._design import design_fractions as design_fractions
 from ._design import points_for_ratio as points_for_ratio
 from ._design import predict_feature as predict_feature

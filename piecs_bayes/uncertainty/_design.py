@@ -201,7 +201,10 @@ def design_fractions(feature, n: int, window, settings: DesignSettings, *, fixed
     # two starts (the outer points spread evenly; clustered at both ends), each
     # improved by coordinate exchange; the better one is kept
     best, idx = np.inf, None
-    for start in (_even_start(cand, inside, n_out, min_gap), _end_start(cand, inside, n_out, min_gap)):
+    for start in (
+        _even_start(cand, inside, n_out, min_gap),
+        _end_start(cand, inside, n_out, min_gap),
+    ):
         crit, found = _exchange(start, cand, inside, jac_c, jac_in, jac_at, min_gap)
         if crit < best:
             best, idx = crit, found

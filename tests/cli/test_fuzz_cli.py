@@ -271,6 +271,31 @@ def test_each_init_refusal_gets_its_one_line_message(capsys, tmp_path, case):
     assert not out.exists()
 
 
+#: `plan` on the demo study with one change: (name, old, new, extra argv, message)
+PLAN_CLASSES = [
+    ("plan_no_feed", "feed = 200.0 ", "# feed = 200.0 ", [], "probe.feed: missing; a probe plan needs it (a calibration holds only at the feed it was made at)"),
+    ("plan_no_tool", "tool = 9 ", "# tool = 9 ", [], "probe.tool: missing; a probe plan needs it"),
+    ("plan_bad_tool", "tool = 9 ", "tool = 0 ", [], "probe.tool: expected a tool number 1-99, got 0"),
+    ("plan_overtravel", "[program]", "[plan]\novertravel = 0.05\n\n[program]", [], "plan.overtravel 0.05 mm is not beyond [compensation] max_correction 0.1 mm"),
+    ("plan_key_typo", "[program]", "[plan]\nclearence = 1.0\n\n[program]", [], "did you mean 'clearance'"),
+    ("plan_probe_on", "[program]", "[plan]\nprobe_on = \"M64 P0 (on)\"\n\n[program]", [], "plan.probe_on: expected G-code words such as 'M64 P0'"),
+    ("plan_big_ball", "ball_radius = 1.0", "ball_radius = 2.9", [], "cannot touch feature 'fillet' anywhere"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("case", PLAN_CLASSES, ids=[c[0] for c in PLAN_CLASSES])
+def test_each_plan_refusal_gets_its_one_line_message(capsys, demo_copy, case):
+    name, old, new, extra, expect = case
+    study = _study_variant(demo_copy, f"plan_{name}.toml", old, new)
+    before = _digest(demo_copy)
+    out = demo_copy / f"out_{name}"
+    rc, text = _run(capsys, ["plan", study, "--out", out, "-q", *extra])
+    _check(rc, text, demo_copy, before, [study.name], None)
+    assert rc == 2 and expect in text, text
+    assert len(text.strip().splitlines()) == 1, text
+    assert not out.exists()
+
+
 def test_init_never_writes_over_a_study(capsys, demo_copy, tmp_path):
     study = tmp_path / "study.toml"
     study.write_bytes((DEMO / "study.toml").read_bytes())
