@@ -260,3 +260,16 @@ def algebraic_circle(xy) -> tuple[float, float, float]:
     xc, yc = uc + m[0], vc + m[1]
     r = float(np.mean(np.hypot(xy[:, 0] - xc, xy[:, 1] - yc)))
     return float(xc), float(yc), r
+
+
+def run_cli(capsys, argv) -> tuple[int, str]:
+    """`piecs-bayes ARGV` in this process: `(exit code, stdout + stderr)` (argparse's
+    usage errors exit 2 through SystemExit)."""
+    from piecs_bayes.cli import main
+
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as exc:
+        rc = exc.code
+    out = capsys.readouterr()
+    return rc, out.out + out.err

@@ -34,10 +34,13 @@ def _execute(nb, cwd: Path, timeout: float):
     return client.execute()
 
 
-def test_the_five_notebooks_are_there():
+def test_the_six_notebooks_are_there():
     names = [p.name for p in ALL]
-    assert len(names) == 5, names
-    keys = ("quick_start", "robust_bayes_linearised", "capability", "nose_compensation", "feedback")
+    assert len(names) == 6, names
+    keys = (
+        "quick_start", "robust_bayes_linearised", "capability", "nose_compensation", "feedback",
+        "program_to_plan",
+    )  # fmt: skip
     for key in keys:
         assert any(key in n for n in names), key
 

@@ -29,10 +29,9 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import run_cli as _run
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from piecs_bayes.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "data" / "demo"
@@ -56,15 +55,6 @@ def _digest(folder: Path) -> dict[str, str]:
     return {
         p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in folder.iterdir() if p.is_file()
     }
-
-
-def _run(capsys, argv) -> tuple[int, str]:
-    try:
-        rc = main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse: usage errors exit 2
-        rc = exc.code
-    out = capsys.readouterr()
-    return rc, out.out + out.err
 
 
 def _check(rc, text, inputs: Path, before, names, out: Path | None):

@@ -7,21 +7,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-from piecs_bayes.cli import main
+from helpers import run_cli as _run
+
 from piecs_bayes.io import load_study
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "data" / "demo"
 GCODE = ROOT / "tests" / "data" / "gcode"
-
-
-def _run(capsys, argv) -> tuple[int, str]:
-    try:
-        rc = main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse
-        rc = exc.code
-    out = capsys.readouterr()
-    return rc, out.out + out.err
 
 
 def test_init_writes_a_study_that_loads(capsys, tmp_path):

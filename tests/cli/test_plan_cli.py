@@ -6,20 +6,11 @@ import json
 import shutil
 from pathlib import Path
 
-from piecs_bayes.cli import main
+from helpers import run_cli as _run
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "data" / "demo" / "study.toml"
 GOLDEN = ROOT / "tests" / "data" / "golden" / "demo"
-
-
-def _run(capsys, argv) -> tuple[int, str]:
-    try:
-        rc = main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse
-        rc = exc.code
-    out = capsys.readouterr()
-    return rc, out.out + out.err
 
 
 def test_plan_writes_the_json_the_program_and_the_figure(capsys, tmp_path):
