@@ -5,6 +5,10 @@ from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._atomic import write_bytes_atomic as write_bytes_atomic
 from ._atomic import write_file_atomic as write_file_atomic
 from ._atomic import write_text_atomic as write_text_atomic
+from ._control_probe import PROBE_FORMATS as PROBE_FORMATS
+from ._control_probe import PlanPoints as PlanPoints
+from ._control_probe import read_control_probe as read_control_probe
+from ._control_probe import read_plan_points as read_plan_points
 from ._feedback_section import FEEDBACK_KEYS as FEEDBACK_KEYS
 from ._feedback_section import FEEDBACK_POLICIES as FEEDBACK_POLICIES
 from ._finish import FINISH_COLUMNS as FINISH_COLUMNS

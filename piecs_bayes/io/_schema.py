@@ -20,7 +20,9 @@ __all__ = ["DIST_KEYS", "SECTIONS", "check_keys", "check_source", "nearest"]
 #: `uncertainty` holds one table per source (names in `_sections.KNOWN_SOURCES`) whose
 #: keys the prior reader checks; the job sections' keys come from `_job_sections.JOB_KEYS`.
 SECTIONS: dict[str, tuple[str, ...]] = {
-    "study": ("name", "units", "probe_files", "part_program", "encoding"),
+    "study": (
+        "name", "units", "probe_files", "part_program", "encoding", "probe_format", "probe_plan",
+    ),
     "profile": ("kind", "x_mode", "tangent_tolerance_deg", "feature"),
     "profile.feature": (
         "id", "type", "start", "end", "center", "direction", "tolerance", "tolerance_on",

@@ -35,6 +35,7 @@ __all__ = [
     "read_fit",
     "read_machine",
     "read_probe",
+    "read_probe_format",
     "read_profile",
     "read_sources",
 ]
@@ -407,6 +408,35 @@ def read_compensation(r: Reader, tree: dict, scale: float) -> CompensationSettin
         * scale,
         apply=apply,
     )
+
+
+def read_probe_format(r: Reader, tree: dict, base: Path, transform) -> tuple[str, Path | None]:
+    """`[study]` `probe_format` (how the probe files are written: `PROBE_FORMATS`) and
+    `probe_plan` (the plan.json a control's file is read against: needed by every
+    format but ``"csv"``). A control's file is in the gauging program's work frame:
+    `[machine] z_offset` must then be 0 (the work offset is already applied)."""
+    from ._control_probe import PROBE_FORMATS
+
+    fmt = r.choice(tree, "probe_format", "study.", PROBE_FORMATS, "csv")
+    plan = tree.get("probe_plan")
+    if plan is not None and not isinstance(plan, str):
+        raise r.error("study.probe_plan", f"expected a file name, got {plan!r}", value=plan)
+    if fmt == "csv":
+        return fmt, (base / plan if plan else None)
+    if plan is None:
+        raise r.error(
+            "study.probe_plan",
+            f"missing: probe_format {fmt!r} is read against the plan.json of the gauging "
+            "program (line k of the file is point k of the plan)",
+        )
+    if transform.z_offset != 0.0:
+        raise r.error(
+            "machine.z_offset",
+            f"{transform.z_offset:g} mm with probe_format {fmt!r}: a control's probe file is "
+            "in the gauging program's work frame (the work offset already applied): set 0",
+            value=transform.z_offset,
+        )
+    return fmt, base / plan
 
 
 def read_files(r: Reader, tree: dict, base: Path) -> tuple[tuple[Path, ...], Path | None]:

@@ -118,6 +118,8 @@ class Study:
     offsets: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     errspec: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     plan: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    probe_format: str = "csv"
+    probe_plan: Path | None = None
     program_settings: ProgramSettings = field(default_factory=ProgramSettings)
     encoding: str = "utf-8"
     plausibility: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))

@@ -30,6 +30,7 @@ from ._sections import (
     read_fit,
     read_machine,
     read_probe,
+    read_probe_format,
     read_profile,
     read_sources,
 )
@@ -99,6 +100,7 @@ def load_study(path) -> Study:
     fit = read_fit(r, tree, scale, profile)
     comp = read_compensation(r, tree, scale)
     probe_files, program = read_files(r, study, path.parent)
+    probe_format, probe_plan = read_probe_format(r, study, path.parent, transform)
     program_settings = read_program_settings(
         r, r.table(tree, "program", ""), scale, profile, path.parent
     )
@@ -126,5 +128,7 @@ def load_study(path) -> Study:
         program_settings=program_settings,
         encoding=encoding,
         plausibility=MappingProxyType(plausibility),
+        probe_format=probe_format,
+        probe_plan=probe_plan,
         **job,
     )

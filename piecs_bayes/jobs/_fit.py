@@ -14,7 +14,15 @@ import numpy as np
 
 from ..errors import InputError
 from ..fit import ProfileFit, fit_profile, fit_profile_joint, pooled_residuals, to_part_frame
-from ..io import ProbeData, Study, check_probe_data, read_bytes, read_probe_csv
+from ..io import (
+    ProbeData,
+    Study,
+    check_probe_data,
+    read_bytes,
+    read_control_probe,
+    read_plan_points,
+    read_probe_csv,
+)
 from ._options import bayes_options, fit_options, robust_scale
 
 if TYPE_CHECKING:  # compensate pulls in scipy (~0.6 s): imported where it is used
@@ -46,15 +54,10 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
     if not files:
         raise InputError("the study lists no probe files (study.probe_files)", file=str(study.path))
     _refuse_repeated_files(files)
+    read = _probe_reader(study)
     datas = [
         check_probe_data(
-            read_probe_csv(
-                f,
-                units=study.units,
-                x_mode=study.probe.x_mode,
-                features=study.profile.ids,
-                encoding=study.encoding,
-            ),
+            read(f),
             study.profile,
             transform=study.transform,
             ball_radius=study.probe.ball_radius,
@@ -82,6 +85,29 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
         approach=cat("approach"),
         time=cat("time"),
         temperature=cat("temperature"),
+    )
+
+
+def _probe_reader(study: Study):
+    """How the study's probe files are read: the package's CSV, or a control's file
+    against the study's probe plan (`[study] probe_format`, `probe_plan`)."""
+    if study.probe_format == "csv":
+        return lambda f: read_probe_csv(
+            f, units=study.units, x_mode=study.probe.x_mode, features=study.profile.ids,
+            encoding=study.encoding,
+        )  # fmt: skip
+    plan = read_plan_points(study.probe_plan)
+    unknown = sorted(set(plan.feature) - set(study.profile.ids))
+    if unknown:
+        raise InputError(
+            f"the probe plan names feature(s) {', '.join(map(repr, unknown))} that the study's "
+            f"profile does not have ({', '.join(study.profile.ids)}): the plan of another study",
+            file=plan.file,
+            feature=unknown[0],
+        )
+    limit = float(study.plausibility.get("max_distance", 0.5))
+    return lambda f: read_control_probe(
+        f, study.probe_format, plan, x_mode=study.probe.x_mode, limit_mm=limit
     )
 
 

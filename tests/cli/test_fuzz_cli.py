@@ -463,3 +463,47 @@ def test_a_closed_reader_is_a_quiet_stop(tmp_path):
     os.close(w)
     _, err = proc.communicate(timeout=300)
     assert proc.returncode == 141 and err == "", (proc.returncode, err)
+
+
+@pytest.fixture(scope="module")
+def gauge_copy(tmp_path_factory):
+    """The demo in the work frame with a 5-point plan and its LinuxCNC probe file (the
+    plan's nominal ball centres, 6 decimals, as PROBEOPEN writes them)."""
+    from piecs_bayes.export import plan_json
+    from piecs_bayes.io import load_study
+    from piecs_bayes.jobs import plan_study
+
+    tmp = tmp_path_factory.mktemp("gauge-fuzz")
+    text = (DEMO / "study.toml").read_text().replace("z_offset = -312.4873", "z_offset = 0.0")
+    text = text.replace('probe_files = ["probe_part01.csv"]', 'probe_files = ["part.txt"]\n'
+                        'probe_format = "linuxcnc"\nprobe_plan = "plan.json"')  # fmt: skip
+    (tmp / "plain.toml").write_text(text.replace('probe_format = "linuxcnc"\n', ""))
+    plan = plan_study(load_study(tmp / "plain.toml"), points=5)
+    (tmp / "plan.json").write_text(plan_json(plan))
+    (tmp / "study.toml").write_text(text)
+    lines = [f"{p.centre[0]:f} 0.000000 {p.centre[1]:f} 0 0 0 0 0 0\n" for p in plan.points]
+    return tmp, lines
+
+
+#: a control's probe file with one fault: (name, change of the lines, the message)
+GAUGE_CLASSES = [
+    ("truncated", lambda ls: ls[:4] + [" ".join(ls[4].split()[:5]) + "\n"] + ls[5:], "part.txt:5: not a LinuxCNC probe line: 5 numbers"),
+    ("extra_column", lambda ls: ls[:2] + [ls[2].rstrip() + " 7\n"] + ls[3:], "part.txt:3: not a LinuxCNC probe line: 10 numbers"),
+    ("comma_decimal", lambda ls: [ls[0].replace(".", ",", 1)] + ls[1:], "part.txt:1: not a LinuxCNC probe line:"),
+    ("swapped_xz", lambda ls: ls[:7] + [" ".join([ls[7].split()[2], "0", ls[7].split()[0]] + ["0"] * 6) + "\n"] + ls[8:], "part.txt:8, feature"),
+    ("diameter_for_radius", lambda ls: [" ".join([f"{2 * float(s.split()[0]):f}"] + s.split()[1:]) + "\n" for s in ls], "part.txt:1, feature"),
+    ("one_missing", lambda ls: ls[:-1], "34 probe points in the file, the plan plan.json has 35"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("case", GAUGE_CLASSES, ids=[c[0] for c in GAUGE_CLASSES])
+def test_each_control_probe_fault_gets_its_one_line_message(capsys, gauge_copy, case):
+    tmp, lines = gauge_copy
+    name, change, expect = case
+    (tmp / "part.txt").write_text("".join(change(list(lines))))
+    before = _digest(tmp)
+    out = tmp / f"out_{name}"
+    rc, text = _run(capsys, ["fit", tmp / "study.toml", "--out", out, "-q"])
+    _check(rc, text, tmp, before, ["part.txt"], out)
+    assert rc == 2 and expect in text, text
+    assert len(text.strip().splitlines()) == 1, text

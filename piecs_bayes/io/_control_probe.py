@@ -1,0 +1,213 @@
+"""Probe files as controls write them, read against the probe plan that made them.
+
+A gauging program written by `piecs-bayes plan` probes the plan's points in order;
+the control writes one line per touch. Line *k* of such a file is point *k* of the
+plan (`plan.json`): its feature and approach direction come from the plan, its
+ball centre from the file. Formats (`[study] probe_format`):
+
+- ``"linuxcnc"``: the file of ``(PROBEOPEN name)``: ``X Y Z A B C U V W`` of the
+  ball centre at the trip, nine numbers of ``%f`` (6 decimals, always ``.``),
+  separated by spaces; X a **radius** even in G7; the work frame of the gauging
+  program; the program's units (the plan's).
+- ``"fanuc-dprnt"``: the lines of ``DPRNT[X#5061[44]*Z#5062[44]]``: ``X`` and a
+  number, ``Z`` and a number (spaces between, leading zeros printed as spaces);
+  X a diameter or a radius as `[probe] x_mode` says (a control setting).
+
+Refused, naming the file, the line, the planned point and the value: a line that is
+not the format; more or fewer points than the plan; a failed probe (the position
+equals the programmed target: the move ran to its end without a trip); a point
+farther from its planned ball centre than `limit_mm` (a point of another feature,
+a skipped or repeated touch shifts every line after it).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ._probe import ProbeData
+from ._text import decode, read_bytes
+
+__all__ = ["PROBE_FORMATS", "PlanPoints", "read_plan_points", "read_control_probe"]
+
+PROBE_FORMATS = ("csv", "linuxcnc", "fanuc-dprnt")
+_MM_PER = {"mm": 1.0, "in": 25.4}
+_NUM = r"[+-]?\s*(?:\d+\.?\d*|\.\d+)"
+_DPRNT = re.compile(rf"^\s*X\s*({_NUM})\s+Z\s*({_NUM})\s*$")
+
+
+@dataclass(frozen=True, eq=False)
+class PlanPoints:
+    """What a probe file is read against: the plan's points in program order (mm,
+    radius X, part frame = the gauging program's work frame)."""
+
+    file: str
+    units: str
+    feature: tuple[str, ...]
+    centre: np.ndarray
+    approach: np.ndarray
+    target: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.feature)
+
+
+def read_plan_points(path) -> PlanPoints:
+    """The points of a `plan.json` (docs/formats.md)."""
+    name = str(path)
+    try:
+        body = json.loads(decode(read_bytes(path, what="probe plan"), file=name))
+        k = _MM_PER[body["units"]]
+        if body.get("x") != "radius":
+            raise ValueError(f"x is {body.get('x')!r}, expected 'radius'")
+        pts = body["points"]
+        feature = tuple(str(p["feature"]) for p in pts)
+
+        def arr(key, scale):
+            return np.array([[float(v) for v in p[key]] for p in pts], dtype=float).reshape(
+                -1, 2
+            ) * scale
+
+        plan = PlanPoints(
+            name, body["units"], feature, arr("centre", k), arr("approach", 1.0), arr("target", k)
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"not a probe plan of piecs-bayes: {exc}", file=name) from None
+    if not len(plan):
+        raise InputError("the probe plan has no points", file=name)
+    return plan
+
+
+def _lines(path) -> list[tuple[int, str]]:
+    text = decode(read_bytes(path, what="probe file"), file=str(path))
+    return [(i, s) for i, s in enumerate(text.splitlines(), start=1) if s.strip()]
+
+
+def _parse_linuxcnc(rows, name):
+    vals = []
+    for i, s in rows:
+        parts = s.split()
+        try:
+            nums = [float(p) for p in parts]
+        except ValueError:
+            bad = next(p for p in parts if not _is_number(p))
+            raise InputError(
+                f"not a LinuxCNC probe line: {bad!r} is not a number (expected nine numbers "
+                "X Y Z A B C U V W with '.' decimals)",
+                file=name,
+                line=i,
+                value=bad,
+            ) from None
+        if len(nums) != 9 or not all(math.isfinite(v) for v in nums):
+            raise InputError(
+                f"not a LinuxCNC probe line: {len(nums)} numbers, expected nine finite ones "
+                "(X Y Z A B C U V W)",
+                file=name,
+                line=i,
+                value=s.strip()[:80],
+            )
+        vals.append((nums[0], nums[2]))
+    return np.array(vals, dtype=float).reshape(-1, 2), 1.0
+
+
+def _is_number(p: str) -> bool:
+    try:
+        float(p)
+    except ValueError:
+        return False
+    return True
+
+
+def _parse_dprnt(rows, name, x_mode):
+    vals = []
+    for i, s in rows:
+        m = _DPRNT.match(s)
+        if m is None:
+            raise InputError(
+                "not a DPRNT line of the plan's program: expected 'X <number> Z <number>' "
+                "(DPRNT[X#5061[44]*Z#5062[44]])",
+                file=name,
+                line=i,
+                value=s.strip()[:80],
+            )
+        vals.append((float(m.group(1).replace(" ", "")), float(m.group(2).replace(" ", ""))))
+    return np.array(vals, dtype=float).reshape(-1, 2), (0.5 if x_mode == "diameter" else 1.0)
+
+
+def read_control_probe(
+    path, fmt: str, plan: PlanPoints, *, x_mode: str = "diameter", limit_mm: float = 0.5,
+    part: str | None = None,
+) -> ProbeData:  # fmt: skip
+    """Read a control's probe file against its plan (module docstring).
+
+    **Arguments:** `path`; `fmt` one of `PROBE_FORMATS` but ``"csv"``; `plan` (from
+    `read_plan_points`); `x_mode`: how a Fanuc file writes X (LinuxCNC's is always a
+    radius); `limit_mm`: the largest distance of a ball centre from its planned one;
+    `part`: the part id (default: the file's stem).
+
+    **Returns:** `ProbeData` in mm, radius X, the work frame, with the plan's
+    features and approach directions.
+    """
+    name = str(path)
+    rows = _lines(path)
+    if fmt == "linuxcnc":
+        pts, xs = _parse_linuxcnc(rows, name)
+    elif fmt == "fanuc-dprnt":
+        pts, xs = _parse_dprnt(rows, name, x_mode)
+    else:
+        raise InputError(
+            f"probe_format: got {fmt!r}, expected one of {', '.join(PROBE_FORMATS)}", value=fmt
+        )
+    k = _MM_PER[plan.units]
+    pts = pts * np.array([xs * k, k])
+    if len(pts) != len(plan):
+        raise InputError(
+            f"{len(pts)} probe points in the file, the plan {Path(plan.file).name} has "
+            f"{len(plan)}: line k of the file is point k of the plan, so they must match "
+            "(a touch skipped or repeated, or the file of another plan)",
+            file=name,
+            value=len(pts),
+        )
+    _check_points(pts, plan, rows, name, k, xs, limit_mm)
+    lines = np.array([i for i, _ in rows], dtype=np.int64)
+    return ProbeData(
+        file=(name,),
+        feature=np.array(plan.feature),
+        points=pts,
+        lines=lines,
+        part=np.full(len(pts), part if part is not None else Path(name).stem, dtype=object),
+        approach=plan.approach.copy(),
+    )
+
+
+def _check_points(pts, plan, rows, name, k, xs, limit_mm) -> None:
+    written = 10.0 ** -(6 if xs == 1.0 else 4) * k  # the file's last digit, in mm
+    for j, (p, c, t) in enumerate(zip(pts, plan.centre, plan.target, strict=True)):
+        line = rows[j][0]
+        where = f"point {j + 1} of the plan (feature {plan.feature[j]!r}"
+        if np.all(np.abs(p - t) <= 1.5 * written):
+            raise InputError(
+                f"{where}, target X{t[0] / k:.4f} Z{t[1] / k:.4f} as a radius): the probe "
+                "reached its target without a trip (a failed probe)",
+                file=name,
+                line=line,
+                feature=plan.feature[j],
+            )
+        d = float(np.hypot(*(p - c)))
+        if d > limit_mm:
+            raise InputError(
+                f"{where}, planned ball centre X{c[0] / k:.4f} Z{c[1] / k:.4f} as a radius): "
+                f"the file's point X{p[0] / k:.4f} Z{p[1] / k:.4f} is {d:.3f} mm from it "
+                f"(limit {limit_mm:g} mm): a point of another feature, or a touch skipped "
+                "or repeated before it",
+                file=name,
+                line=line,
+                feature=plan.feature[j],
+                value=d,
+            )
