@@ -13,13 +13,11 @@ import json
 import math
 from pathlib import Path
 
-from ..gcode import gauging_program
+from ..gcode import GAUGING_NAMES, gauging_program
 from ..io import write_text_atomic
 
 __all__ = ["GAUGING_NAMES", "plan_json", "plan_program", "plan_figure", "write_plan"]
 
-#: the gauging program's file name by controller
-GAUGING_NAMES = {"linuxcnc": "gauging.ngc", "fanuc": "gauging_fanuc.nc"}
 _MM_PER = {"mm": 1.0, "in": 25.4}
 
 

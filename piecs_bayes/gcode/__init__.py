@@ -18,6 +18,7 @@ from ._contour import FinishContour as FinishContour
 from ._contour import compensation_runs as compensation_runs
 from ._contour import finish_contour as finish_contour
 from ._gauging import CONTROLLERS as CONTROLLERS
+from ._gauging import GAUGING_NAMES as GAUGING_NAMES
 from ._gauging import gauging_program as gauging_program
 from ._header import comment_style as comment_style
 from ._header import comment_text as comment_text

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 
 from ..errors import AnalysisError, InputError, PiecsError
+from ..gcode import GAUGING_NAMES
 from ..io import load_study
 from ..uncertainty import normal_deviation_draws
 from ._apply import apply_route
@@ -414,6 +415,10 @@ def _inputs(study, tool_table, capability_files) -> tuple:
         inputs += [hash_file("probe (capability)", p) for p in capability_files]
     if study.program is not None:
         inputs.append(hash_file("program", study.program))
+    if study.probe_plan is not None and study.probe_plan.is_file():
+        inputs.append(hash_file("probe plan", study.probe_plan))
+        gauging = [study.probe_plan.parent / n for n in GAUGING_NAMES.values()]
+        inputs += [hash_file("gauging program", g) for g in gauging if g.is_file()]
     if tool_table is not None and not hasattr(tool_table, "get"):
         inputs.append(hash_file("tool_table", tool_table))
     return tuple(inputs)
