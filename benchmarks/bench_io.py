@@ -69,6 +69,29 @@ def best(fn, repeat: int) -> tuple[float, float]:
     return min(wall), min(cpu)
 
 
+def probeopen_times(tmp: Path, rows: int, repeat: int, pd):
+    """`read_control_probe` of a `rows`-line LinuxCNC PROBEOPEN file against a plan of
+    as many points (the ball centres 1-5 um off the planned ones), and pandas."""
+    import numpy as np
+
+    from piecs_bayes.io import PlanPoints, read_control_probe
+
+    rng = np.random.default_rng(1)
+    centre = np.column_stack([rng.uniform(5, 25, rows), rng.uniform(-90, 0, rows)])
+    approach = np.tile([-1.0, 0.0], (rows, 1))
+    plan = PlanPoints("plan.json", "mm", ("dia",) * rows, centre, approach, centre - 0.5 * approach)
+    got = centre + rng.normal(0.0, 0.003, centre.shape)
+    path = tmp / "probe_points.txt"
+    path.write_text("".join(f"{x:f} 0.000000 {z:f} 0.000000 0.000000 0.000000 0.000000 "
+                            "0.000000 0.000000\n" for x, z in got))  # fmt: skip
+    path.read_bytes()
+    t = best(lambda: read_control_probe(path, "linuxcnc", plan), repeat)
+    t_pd = best(lambda: pd.read_csv(path, sep=" ", header=None), repeat)
+    back = read_control_probe(path, "linuxcnc", plan)
+    assert np.allclose(back.points, np.round(got, 6), rtol=0, atol=1e-12)
+    return t, t_pd
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rows", type=int, default=1_000_000)
@@ -129,6 +152,8 @@ def main() -> None:
         t_bad = best(fails, args.repeat)
         assert f"probe_bad.csv:{line}," in msg, msg
 
+        t_cnc, t_cnc_pd = probeopen_times(Path(tmp), args.rows, args.repeat, pd)
+
     n = args.rows
 
     def row(name, t):
@@ -143,6 +168,8 @@ def main() -> None:
     row("pandas.read_csv (anchor, no checks)", t_pd)
     row("jobs.load_probe_data (read + plausibility)", t_load)
     row(f"read_probe_csv, bad cell at row {bad_row:,}", t_bad)
+    row("read_control_probe, LinuxCNC PROBEOPEN file (against its plan)", t_cnc)
+    row("pandas.read_csv of that file (sep=' ', no checks)", t_cnc_pd)
     print()
     print(f"bad cell: {msg}")
     if t_rows is not None:

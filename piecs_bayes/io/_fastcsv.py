@@ -146,8 +146,9 @@ def split_lines(data: bytes) -> Lines:
 def read_rows(lines: Lines, header_line: int, kinds, features=None) -> Rows:
     """The data rows after ``header_line`` (1-based) with ``len(kinds)`` cells each.
 
-    ``kinds[j]``: ``"number"``, ``"string"`` (non-empty) or ``"feature"`` (one of
-    ``features`` when given, else any non-empty string).
+    ``kinds[j]``: ``"number"``, ``"string"`` (non-empty), ``"feature"`` (one of
+    ``features`` when given, else any non-empty string) or ``"skip"`` (a cell that is
+    not read: the caller vouches for it).
     """
     ncols = len(kinds)
     nlines = len(lines.start)
@@ -162,6 +163,8 @@ def read_rows(lines: Lines, header_line: int, kinds, features=None) -> Rows:
     numbers: dict[int, np.ndarray] = {}
     strings: dict[int, tuple[np.ndarray, list[str]]] = {}
     for j, kind in enumerate(kinds):
+        if kind == "skip":
+            continue
         s = lines.start[rows] if j == 0 else commas[:, j - 1] + 1
         stop = lines.end[rows] if j == ncols - 1 else commas[:, j]
         s, e = _strip(lines.buf, s, stop) if spaces else (s, stop)
