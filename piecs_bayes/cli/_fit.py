@@ -89,9 +89,7 @@ def register(sub) -> None:
         EXAMPLES["simulate"],
     )
     p.add_argument("which", choices=("demo", "batch", "gauge"), help="which data set")
-    p.add_argument(
-        "program", nargs="?", type=Path, default=None, help="gauge: the gauging program"
-    )
+    p.add_argument("program", nargs="?", type=Path, default=None, help="gauge: the gauging program")
     p.add_argument("--study", type=Path, default=None, help="gauge: the study (TOML)")
     p.add_argument(
         "--truth", type=Path, default=None, help="gauge: the truth (deviations, as truth.json)"
