@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import InputError
 from . import _types as T
 from ._common import add_apply, add_common, finish, fit_from_args, out_dir, subcommand, write
 from ._outputs import bayes_from_args, print_fit, write_bayes, write_bounds, write_fit
@@ -14,7 +15,9 @@ __all__ = ["register"]
 EXAMPLES = {
     "fit": "piecs-bayes fit data/demo/study.toml --out reports/fit --method robust",
     "compensate": "piecs-bayes compensate data/demo/study.toml --out reports/comp",
-    "simulate": "piecs-bayes simulate demo --out data/demo --seed 20261123",
+    "simulate": "piecs-bayes simulate demo --out data/demo --seed 20261123\n"
+    "  piecs-bayes simulate gauge reports/plan/gauging.ngc --study data/demo/study.toml "
+    "--truth data/demo/truth.json --out probe_points.txt",
 }
 
 
@@ -81,10 +84,34 @@ def register(sub) -> None:
     p = subcommand(
         sub,
         "simulate",
-        "Write simulated data sets with known truth (demo part, batch run).",
+        "Write simulated data sets with known truth (demo part, batch run), or run a "
+        "gauging program on a simulated machine (gauge) and write the control's probe file.",
         EXAMPLES["simulate"],
     )
-    p.add_argument("which", choices=("demo", "batch"), help="which data set")
+    p.add_argument("which", choices=("demo", "batch", "gauge"), help="which data set")
+    p.add_argument("program", nargs="?", type=Path, default=None, help="gauge: the gauging program")
+    p.add_argument("--study", type=Path, default=None, help="gauge: the study (TOML)")
+    p.add_argument(
+        "--truth", type=Path, default=None, help="gauge: the truth (deviations, as truth.json)"
+    )
+    p.add_argument(
+        "--repeatability",
+        type=T.nonneg_mm,
+        default=None,
+        help="gauge: the probe's repeatability sd along the move (mm; default: the study's)",
+    )
+    p.add_argument(
+        "--pretravel",
+        type=T.finite_mm,
+        default=None,
+        help="gauge: the trigger comes this much further along the move (mm; default 0)",
+    )
+    p.add_argument(
+        "--fanuc-x-mode",
+        choices=("diameter", "radius"),
+        default=None,
+        help="gauge, Fanuc: the control's X mode (default: the study's [plan] x_mode)",
+    )
     p.add_argument("--parts", type=T.positive_int, default=36, help="batch: number of parts")
     p.add_argument(
         "--points",
@@ -170,10 +197,42 @@ def _machine_files(args, study, fit, path, out, route, why, console):
 def cmd_simulate(args, console) -> int:
     from ..jobs import simulate
 
+    if args.which == "gauge":
+        return _simulate_gauge(args, console)
+    if args.program is not None:
+        raise InputError(
+            f"simulate {args.which} takes no program (got {str(args.program)!r}); "
+            "did you mean 'simulate gauge'?"
+        )
     out = args.out or Path("data") / args.which
     if args.which == "demo":
         simulate.write_demo(out, seed=args.seed or 20261123)
     else:
         simulate.write_batch(out, n_parts=args.parts, seed=args.seed or 7, points=args.points)
     console.say(f"wrote simulated {args.which} data to {out}")
+    return 0
+
+
+def _simulate_gauge(args, console) -> int:
+    from ..io import load_study
+    from ..jobs import simulate_gauge
+
+    for value, what in ((args.program, "PROGRAM"), (args.study, "--study STUDY"),
+                        (args.truth, "--truth TRUTH"), (args.out, "--out FILE")):  # fmt: skip
+        if value is None:
+            raise InputError(f"simulate gauge needs {what}")
+    for path, what in ((args.program, "gauging program"), (args.truth, "truth file")):
+        if not path.is_file():
+            raise InputError(f"{what} not found" if not path.exists() else "is a folder, "
+                             f"not a {what}", file=str(path))  # fmt: skip
+    study = load_study(args.study)
+    console.step(f"read {study!r}")
+    rep = study.probe.repeatability if args.repeatability is None else args.repeatability
+    run = simulate_gauge(
+        args.program, study, args.truth, repeatability=rep, seed=args.seed,
+        pretravel=args.pretravel, x_mode_fanuc=args.fanuc_x_mode,
+    )  # fmt: skip
+    console.step(f"ran {run!r}")
+    path = run.write(args.out, protect=[args.program, args.truth, study.path])
+    console.say(f"wrote {path}")
     return 0

@@ -6,7 +6,15 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["gain", "nonneg_int", "positive_float", "positive_int", "positive_mm"]
+__all__ = [
+    "finite_mm",
+    "gain",
+    "nonneg_int",
+    "nonneg_mm",
+    "positive_float",
+    "positive_int",
+    "positive_mm",
+]
 
 
 def _number(text: str, what: str) -> float:
@@ -21,6 +29,22 @@ def positive_mm(text: str) -> float:
     v = _number(text, "a length in mm")
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0 (mm), got {text!r}")
+    return v
+
+
+def nonneg_mm(text: str) -> float:
+    """A finite length >= 0 (mm)."""
+    v = _number(text, "a length in mm")
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0 (mm), got {text!r}")
+    return v
+
+
+def finite_mm(text: str) -> float:
+    """A finite length (mm), of either sign."""
+    v = _number(text, "a length in mm")
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number (mm), got {text!r}")
     return v
 
 

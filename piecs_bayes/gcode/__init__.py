@@ -17,6 +17,12 @@ from ._contour import ContourSegment as ContourSegment
 from ._contour import FinishContour as FinishContour
 from ._contour import compensation_runs as compensation_runs
 from ._contour import finish_contour as finish_contour
+from ._dprnt import DprntFormat as DprntFormat
+from ._dprnt import dprnt_value as dprnt_value
+from ._gauge_moves import GaugeMove as GaugeMove
+from ._gauge_moves import GaugeProgram as GaugeProgram
+from ._gauge_moves import gauge_moves as gauge_moves
+from ._gauge_moves import read_gauge_program as read_gauge_program
 from ._gauging import CONTROLLERS as CONTROLLERS
 from ._gauging import GAUGING_NAMES as GAUGING_NAMES
 from ._gauging import gauging_program as gauging_program

@@ -14,6 +14,8 @@ study and returns immutable data; `piecs_bayes.export` renders and writes it.
   (`coverage_check`) and the simulated data sets (`piecs_bayes.jobs.simulate`);
 - `options`: the one translation of a study into the layers' settings;
 - `init_study`: a new study whose profile is the finish contour of a part program;
+- `simulate_gauge`: a gauging program run on a simulated machine against a truth
+  part, and the probe file the control would write;
 - `apply_route`: the one route of the correction to the machine (program, error
   spec or tool offset; never two).
 """
@@ -72,5 +74,9 @@ from ._plan import plan_study as plan_study
 from ._results import InputFile as InputFile
 from ._results import JobResults as JobResults
 from ._results import package_versions as package_versions
+from ._sim_gauge import GaugeRun as GaugeRun
+from ._sim_gauge import GaugeTrip as GaugeTrip
+from ._sim_gauge import read_truth as read_truth
+from ._sim_gauge import simulate_gauge as simulate_gauge
 from ._simulate_finish import FINISH_DEFAULTS as FINISH_DEFAULTS
 from ._simulate_finish import write_finish as write_finish

@@ -286,6 +286,59 @@ def test_each_plan_refusal_gets_its_one_line_message(capsys, demo_copy, case):
     assert not out.exists()
 
 
+#: `simulate gauge` on the demo plan's program with one change: (name, old, new in the
+#: program; truth text edit; extra argv; exit code; message; line named or None)
+SIM_CLASSES = [
+    ("sim_g95", "G90 G94", "G90 G95", None, [], 2, "Cannot probe with feed per rev mode (G95", 14),
+    ("sim_comp", "G40 G90", "G41 G90", None, [], 2, "Cannot probe with cutter radius compensation on", 14),
+    ("sim_zero", "G38.2 X25.0000 Z-1.2000", "G38.2 X29.0000 Z-1.2000", None, [], 2, "Start point too close to probe point", 14),
+    ("sim_word", "G38.2 X25.0000 Z-1.2000", "G38.2 X25.0000 Z-1.2000 E2", None, [], 2, "Unknown word starting with E", 14),
+    ("sim_miss", None, None, ('"offset": 0.021670880000000302', '"offset": -0.6'), [], 1, "G38.2 move finished without making contact (", 14),
+    ("sim_truth_value", None, None, ('"radius": 0.004', '"radius": null'), [], 2, "radius: expected a finite number (mm or rad), got None", 44),
+    ("sim_truth_json", None, None, ('"deviations": {', '"deviations": {,'), [], 2, "not JSON", 24),
+    ("sim_truth_feature", None, None, ('"taper"', '"tapr"'), [], 2, "unknown feature id 'tapr'", 33),
+    ("sim_no_truth", None, None, None, ["--truth", "missing.json"], 2, "truth file not found", None),
+    ("sim_no_study", None, None, None, ["--study", "missing.toml"], 2, "study file not found", None),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("case", SIM_CLASSES, ids=[c[0] for c in SIM_CLASSES])
+def test_each_simulate_gauge_refusal_gets_its_one_line_message(capsys, tmp_path, case):
+    name, old, new, truth_edit, extra, code, expect, line = case
+    rc, text = _run(capsys, ["plan", DEMO / "study.toml", "--points", "3", "-q",
+                             "--out", tmp_path / "plan"])  # fmt: skip
+    assert rc == 0, text
+    prog = tmp_path / f"{name}.ngc"
+    src = (tmp_path / "plan" / "gauging.ngc").read_text()
+    if old is not None:
+        assert old in src, old
+        src = src.replace(old, new, 1)
+    prog.write_text(src)
+    truth = tmp_path / f"{name}.json"
+    ttext = (DEMO / "truth.json").read_text()
+    if truth_edit is not None:
+        assert truth_edit[0] in ttext, truth_edit
+        ttext = ttext.replace(*truth_edit, 1)
+    truth.write_text(ttext)
+    out = tmp_path / "out.txt"
+    argv = ["simulate", "gauge", prog, "--study", DEMO / "study.toml", "--truth", truth,
+            "--out", out, "-q"]  # fmt: skip
+    for k in range(0, len(extra), 2):  # replace an option's value
+        if extra[k] in argv:
+            argv[argv.index(extra[k]) + 1] = tmp_path / extra[k + 1]
+        else:
+            argv += extra[k : k + 2]
+    before = _digest(tmp_path)
+    rc, msg = _run(capsys, argv)
+    _check(rc, msg, tmp_path, before, [prog.name, truth.name, "missing"], tmp_path)
+    assert rc == code and expect in msg, msg
+    if line is not None:
+        where = prog.name if truth_edit is None or code == 1 else truth.name
+        assert f"{where}:{line}" in msg, msg
+    assert len(msg.strip().splitlines()) == 1, msg
+    assert not out.exists()
+
+
 def test_init_never_writes_over_a_study(capsys, demo_copy, tmp_path):
     study = tmp_path / "study.toml"
     study.write_bytes((DEMO / "study.toml").read_bytes())
@@ -360,6 +413,9 @@ def test_command_line_numbers_and_file_system_faults(capsys, demo_copy):
         (["compensate", study, "--gain", "nan"], "expected a gain in [0, 1]"),
         (["simulate", "batch", "--parts", "0"], "expected an integer >= 1"),
         (["simulate", "batch", "--parts", "-3"], "expected an integer >= 1"),
+        (["simulate", "gauge", "p.ngc", "--repeatability", "-1"], "expected a finite number >= 0 (mm)"),
+        (["simulate", "gauge", "p.ngc", "--pretravel", "nan"], "expected a finite number (mm)"),
+        (["simulate", "gauge", demo_copy / "finish.ngc", "--study", study], "simulate gauge needs --truth TRUTH"),
         (["gcode", "nose-comp", demo_copy / "finish.ngc", "--nose-radius", "nan", "-o", demo_copy / "x.ngc"], "finite number > 0"),
         (["gcode", "nose-comp", demo_copy / "finish.ngc", "--nose-radius", "0", "-o", demo_copy / "x.ngc"], "finite number > 0"),
     ]:  # fmt: skip
