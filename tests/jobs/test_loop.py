@@ -1,0 +1,139 @@
+"""The loop on the machine, end to end (issue 26): the study from the finish program
+(`init`), the probe plan and gauging program (`plan`), the simulated machine running
+it on the truth part (`simulate gauge`), the control's probe file read against the
+plan, then fit, decide and compensate.
+
+Asserted on the demo shaft (LinuxCNC and Fanuc dialects) and on a bore: every
+characteristic within 3 u of the truth's; the adjusted path's vertices within 3 u
+(their linearised standard uncertainty, with 1 um of slack for the 4-decimal program
+words) of the path that would remove the truth's deviations exactly; the adjusted
+program runs through rs274 where it is installed.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from piecs_bayes.export import plan_json, plan_program
+from piecs_bayes.gcode import rs274_path, run_rs274
+from piecs_bayes.io import load_study
+from piecs_bayes.jobs import (
+    adjust_study_program,
+    characteristics,
+    compensate_study,
+    fit_study,
+    plan_study,
+    simulate_gauge,
+    study_from_program,
+    toolpath_uncertainty,
+)
+from piecs_bayes.uncertainty import normal_deviation
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "data" / "demo"
+GCODE = ROOT / "tests" / "data" / "gcode"
+
+
+def _study_text(program: Path, tmp: Path, *, ball: float, extra: str) -> str:
+    res = study_from_program(program, study_path=tmp / "study.toml", ball_radius_mm=ball)
+    text = res.text.replace("# tool = 9 ", "tool = 9   ").replace("# feed = ", "feed = ")
+    text = text.replace("[probe]\n", "[probe]\nrepeatability = 0.0015\n", 1)
+    text = text.replace("# nose_radius = ", "nose_radius = ")
+    if ball < 1.0:  # a small part: 0.1 mm of stock
+        text = text.replace("[program]\n", "[program]\nstock = 0.1\n", 1)
+    return text + extra
+
+
+def _loop(tmp: Path, program: Path, truth_by_order, *, controller="linuxcnc", ball=1.0,
+          extra="", points=None):  # fmt: skip
+    """init -> plan -> simulate gauge -> read -> fit: the study, the fit and the truth."""
+    text = _study_text(program, tmp, ball=ball, extra=extra)
+    (tmp / "study.toml").write_text(text)
+    study = load_study(tmp / "study.toml")
+    truth = dict(zip(study.profile.ids, truth_by_order(study), strict=True))
+    plan = plan_study(study, points=points, controller=controller)
+    (tmp / "plan").mkdir()
+    (tmp / "plan" / "plan.json").write_text(plan_json(plan))
+    prog = tmp / "plan" / ("gauging.ngc" if controller == "linuxcnc" else "gauging_fanuc.nc")
+    prog.write_text(plan_program(plan))
+    run = simulate_gauge(
+        prog, study, truth, repeatability=study.probe.repeatability, seed=11,
+        x_mode_fanuc=study.probe.x_mode if controller == "fanuc" else None,
+    )  # fmt: skip
+    run.write(tmp / "probe_points.txt")
+    fmt = "linuxcnc" if controller == "linuxcnc" else "fanuc-dprnt"
+    text = text.replace(
+        "probe_files = []",
+        f'probe_files = ["probe_points.txt"]\nprobe_format = "{fmt}"\n'
+        'probe_plan = "plan/plan.json"',
+    )
+    (tmp / "study.toml").write_text(text)
+    study = load_study(tmp / "study.toml")
+    return study, fit_study(study), truth
+
+
+def _demo_truth(study):
+    """data/demo/truth.json's deviations, feature by feature in profile order (init's
+    ids are face_z0, dia_24, taper_1, ...; the demo study's face_end, dia_24, taper)."""
+    demo = load_study(DEMO / "study.toml")
+    body = json.loads((DEMO / "truth.json").read_text())["deviations"]
+    return [np.array([body[f.id][p] for p in f.param_names]) for f in demo.profile.features]
+
+
+def _check(study, fit, truth, tmp):
+    chars = characteristics(study, fit, at="worst")
+    for f in study.profile.features:
+        c = chars[f.id]
+        true = float(normal_deviation(f, truth[f.id], c.t))
+        assert abs(c.mean - true) <= 3 * c.sd, (f.id, c.mean, true, c.sd)
+    path = compensate_study(study, fit)
+    ideal = compensate_study(study, _with_deviations(fit, truth))
+    u = toolpath_uncertainty(study, fit)["linearised"]
+    sd = np.sqrt(np.einsum("vii->vi", u.vertex_cov))
+    assert np.all(np.abs(path.vertices - ideal.vertices) <= 3 * sd + 1e-9), (
+        path.vertices - ideal.vertices,
+        sd,
+    )
+    adj = adjust_study_program(study, path)
+    (tmp / "finish_adjusted.ngc").write_text(adj.text)
+    if rs274_path() is not None:
+        tools = GCODE / "tools.tbl"
+        tools = tools.read_text() + "T202 P202 D0.0315 ;R0.4 finish tool (inches)\n"
+        res = run_rs274(adj.text, tool_table=tools)
+        assert res.error is None, res.error
+    return chars
+
+
+def _with_deviations(fit, truth):
+    """The fit with its deviations replaced by the truth's (the perfect correction)."""
+    from dataclasses import replace
+
+    fits = {fid: replace(f, values=np.asarray(truth[fid], float)) for fid, f in fit.fits.items()}
+    return replace(fit, fits=fits)
+
+
+@pytest.mark.parametrize("controller", ["linuxcnc", "fanuc"])
+def test_the_demo_loop(tmp_path, controller):
+    study, fit, truth = _loop(tmp_path, DEMO / "finish.ngc", _demo_truth, controller=controller)
+    chars = _check(study, fit, truth, tmp_path)
+    assert set(chars) == set(study.profile.ids)
+
+
+def test_the_loop_on_a_bore(tmp_path):
+    """Corpus program 04 (a bore with fillets), a 0.25 mm ball; a truth of a few um per
+    feature: every line shifted outward by 6 um and turned by 50 urad, every arc's
+    radius grown by 4 um."""
+
+    def truth(study):
+        return [np.array([0.006, 5e-5]) if f.kind == "line" else np.array([0.0, 0.0, 0.004])
+                for f in study.profile.features]  # fmt: skip
+
+    extra = "\n[plan]\nclearance = 0.3\nend_clearance = 0.05\n"
+    study, fit, tr = _loop(tmp_path, GCODE / "04_bore_mm_t4_g41.ngc", truth, ball=0.25,
+                           extra=extra, points=6)  # fmt: skip
+    assert any(f.id.startswith("bore_") for f in study.profile.features)
+    _check(study, fit, tr, tmp_path)
