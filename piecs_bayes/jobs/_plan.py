@@ -178,9 +178,15 @@ def _design_settings(study, dof) -> DesignSettings:
     )
 
 
+#: points beyond a feature's parameters that a plan gives at least: a robust fit of
+#: p + 1 points fails when one point is down-weighted (its effective points fall below
+#: p + 1: seen on 3-point lines of the gauged demo), and p + 3 leave it room to find one
+EXTRA_POINTS = 3
+
+
 def _min_points(study, f) -> int:
     least = study.fit.min_points_arc if f.kind == "arc" else study.fit.min_points_line
-    return max(int(least), f.nparams + 1)
+    return max(int(least), f.nparams + EXTRA_POINTS)
 
 
 def _windows(study, s):
@@ -254,7 +260,8 @@ def plan_study(study, *, points=None, ratio=None, controller=None, counts=None):
     - `points`: the count for every feature; `ratio`: the tolerance-to-U ratio to
       reach instead (default `[plan] ratio`, 4); `counts`: a count per feature id
       (overrides both); a count is at least the fit's least points for the feature
-      (`[fit] min_points_line`/`min_points_arc`, and one more than its parameters);
+      (`[fit] min_points_line`/`min_points_arc`) and `EXTRA_POINTS` more than its
+      parameters (5 on a line, 6 on an arc: room for the robust fit);
       `controller`: `"linuxcnc"` or `"fanuc"`.
     """
     s = _settings(study, points, ratio, controller)

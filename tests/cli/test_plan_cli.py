@@ -19,11 +19,11 @@ def test_plan_writes_the_json_the_program_and_the_figure(capsys, tmp_path):
     assert {p.name for p in (tmp_path / "p").iterdir()} == {"plan.json", "gauging.ngc", "plan.png"}
     body = json.loads((tmp_path / "p" / "plan.json").read_text())
     assert body["units"] == "mm" and body["x"] == "radius" and body["controller"] == "linuxcnc"
-    assert [p["index"] for p in body["points"]] == list(range(1, 36))
+    assert [p["index"] for p in body["points"]] == list(range(1, 37))  # 5 a line, 6 the arc
     assert {f["feature"] for f in body["features"]} == {"face_end", "dia_24", "taper", "dia_30",
                                                         "fillet", "shoulder", "dia_44"}  # fmt: skip
     prog = (tmp_path / "p" / "gauging.ngc").read_text()
-    assert prog.count("G38.2 ") == 35 and "(PROBEOPEN probe_points.txt)" in prog
+    assert prog.count("G38.2 ") == 36 and "(PROBEOPEN probe_points.txt)" in prog
     assert "T9 M6 G43" in prog and "M5 " in prog and " G94" in prog and "F200.0" in prog
     assert "fillet" in text and "predicted gauging time" in text
 
@@ -35,7 +35,7 @@ def test_fanuc_dialect(capsys, tmp_path):
     prog = (tmp_path / "f" / "gauging_fanuc.nc").read_text()
     lines = prog.splitlines()
     assert lines[1] == "O9001 (PIECS GAUGING)" and "G98" in prog and "T0909" in prog
-    assert prog.count("G31 ") == prog.count("DPRNT[X#5061[44]*Z#5062[44]]") == 28
+    assert prog.count("G31 ") == prog.count("DPRNT[X#5061[44]*Z#5062[44]]") == 36
     assert lines.index("POPEN") < lines.index("PCLOS")
 
 

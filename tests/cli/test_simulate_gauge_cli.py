@@ -27,7 +27,7 @@ def test_simulate_gauge_writes_the_probe_file(capsys, tmp_path):
     rc, text = _run(capsys, argv)
     assert rc == 0 and f"wrote {out}" in text, text
     lines = out.read_text().splitlines()
-    assert len(lines) == 22 and all(len(x.split()) == 9 for x in lines)
+    assert len(lines) == 36 and all(len(x.split()) == 9 for x in lines)  # 5 a line, 6 the arc
     before = out.read_text()
     rc, _ = _run(capsys, [*argv, "--repeatability", "0", "--pretravel", "0.002"])
     assert rc == 0 and out.read_text() != before

@@ -102,7 +102,7 @@ def test_each_refusal_names_the_file_the_line_and_the_point(gauged):
     good = _linuxcnc(tmp / "good.txt", centres).read_text().splitlines(keepends=True)
     # fewer points than the plan
     msg = _refused(tmp, pl, good[:-1])
-    assert f"34 probe points in the file, the plan plan.json has {plan.n_points}" in msg
+    assert f"35 probe points in the file, the plan plan.json has {plan.n_points}" in msg
     # a truncated line
     msg = _refused(tmp, pl, good[:3] + [" ".join(good[3].split()[:4]) + "\n"] + good[4:])
     assert re.search(r"bad\.txt:4: not a LinuxCNC probe line: \d numbers, expected nine", msg), msg

@@ -137,3 +137,31 @@ def test_the_loop_on_a_bore(tmp_path):
                            extra=extra, points=6)  # fmt: skip
     assert any(f.id.startswith("bore_") for f in study.profile.features)
     _check(study, fit, tr, tmp_path)
+
+
+def test_the_shipped_gauge_data(tmp_path):
+    """data/demo/gauge: the demo study reading the PROBEOPEN file that the simulated
+    machine wrote for the shipped plan's LinuxCNC program on the truth part. Its
+    characteristics lie within 3 u of the truth's; the main job runs on it unchanged and
+    lists the plan and the gauging program among its inputs."""
+    from piecs_bayes.gcode import gauge_moves
+    from piecs_bayes.io import read_plan_points
+    from piecs_bayes.jobs import run_job
+
+    gauge = DEMO / "gauge"
+    study = load_study(gauge / "study.toml")
+    assert study.probe_format == "linuxcnc" and study.probe_plan == gauge / "plan.json"
+    body = json.loads((DEMO / "truth.json").read_text())["deviations"]
+    truth = {f.id: np.array([body[f.id][p] for p in f.param_names]) for f in study.profile}
+    fit = fit_study(study)
+    chars = characteristics(study, fit, at="worst")
+    for f in study.profile.features:
+        true = float(normal_deviation(f, truth[f.id], chars[f.id].t))
+        assert abs(chars[f.id].mean - true) <= 3 * chars[f.id].sd, f.id
+    # the program's probe targets are the plan's (to its 4 printed decimals)
+    plan = read_plan_points(study.probe_plan)
+    moves = [m for m in gauge_moves(gauge / "gauging.ngc") if m.kind == "probe"]
+    np.testing.assert_allclose([m.target for m in moves], plan.target, rtol=0, atol=1e-4)
+    res = run_job(study, bayes=False)
+    roles = {i.role: i.path.name for i in res.inputs}
+    assert roles["probe plan"] == "plan.json" and roles["gauging program"] == "gauging.ngc"

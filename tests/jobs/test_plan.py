@@ -105,7 +105,7 @@ def test_the_least_counts_for_a_ratio_of_4(study):
 
     plan = plan_study(study, ratio=4.0)
     least = {f.id: max(study.fit.min_points_arc if f.kind == "arc" else
-                       study.fit.min_points_line, f.nparams + 1) for f in study.profile}  # fmt: skip
+                       study.fit.min_points_line, f.nparams + 3) for f in study.profile}  # fmt: skip
     nu = sum(n - study.profile[k].nparams for k, n in least.items()) + 8.0
     sds = source_sds(study)
     for fp in plan.features:
