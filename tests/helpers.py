@@ -273,3 +273,20 @@ def run_cli(capsys, argv) -> tuple[int, str]:
         rc = exc.code
     out = capsys.readouterr()
     return rc, out.out + out.err
+
+
+def gauge_ready(init_text: str, *, small: bool = False) -> str:
+    """A study written by `init` made ready to plan and gauge: its commented `[probe]`
+    tool and feed and `[program]` nose radius filled in, the probe's repeatability
+    1.5 um; for a small part (the corpus: R1 fillets, 2 mm steps, a 0.25 mm ball)
+    0.1 mm of stock, 0.3 mm of clearance and 0.05 mm of end clearance (in an inch
+    study 0.004, 0.012 and 0.002 in)."""
+    text = init_text.replace("# tool = 9 ", "tool = 9   ").replace("# feed = ", "feed = ")
+    text = text.replace("# nose_radius = ", "nose_radius = ")
+    inch = 'units = "in"' in text
+    text = text.replace("[probe]\n", f"[probe]\nrepeatability = {0.00006 if inch else 0.0015}\n", 1)
+    if small:
+        stock, clearance, end = (0.004, 0.012, 0.002) if inch else (0.1, 0.3, 0.05)
+        text = text.replace("[program]\n", f"[program]\nstock = {stock}\n", 1)
+        text += f"\n[plan]\nclearance = {clearance}\nend_clearance = {end}\n"
+    return text

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import gauge_ready
 
 from piecs_bayes.errors import InputError
 from piecs_bayes.export import plan_json, plan_program
@@ -69,13 +70,7 @@ def _corpus_study(program: Path, tmp_path: Path):
         res = study_from_program(program, study_path=tmp_path / "study.toml", ball_radius_mm=0.25)
     except InputError:
         return None  # not a single finish contour (tested with init)
-    text = res.text.replace("# tool = 9 ", "tool = 9   ").replace("# feed = ", "feed = ")
-    inch = 'units = "in"' in text
-    # the corpus parts are small (R1 fillets, 2 mm steps): a 0.25 mm ball, 0.1 mm of stock
-    text += "\n[plan]\nclearance = {}\nend_clearance = {}\n".format(
-        *((0.012, 0.002) if inch else (0.3, 0.05))
-    )
-    text = text.replace("[program]\n", f"[program]\nstock = {0.004 if inch else 0.1}\n")
+    text = gauge_ready(res.text, small=True)
     (tmp_path / "study.toml").write_text(text)
     return load_study(tmp_path / "study.toml")
 

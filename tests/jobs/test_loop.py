@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import gauge_ready
 
 from piecs_bayes.export import plan_json, plan_program
 from piecs_bayes.gcode import rs274_path, run_rs274
@@ -38,20 +39,15 @@ DEMO = ROOT / "data" / "demo"
 GCODE = ROOT / "tests" / "data" / "gcode"
 
 
-def _study_text(program: Path, tmp: Path, *, ball: float, extra: str) -> str:
+def _study_text(program: Path, tmp: Path, *, ball: float) -> str:
     res = study_from_program(program, study_path=tmp / "study.toml", ball_radius_mm=ball)
-    text = res.text.replace("# tool = 9 ", "tool = 9   ").replace("# feed = ", "feed = ")
-    text = text.replace("[probe]\n", "[probe]\nrepeatability = 0.0015\n", 1)
-    text = text.replace("# nose_radius = ", "nose_radius = ")
-    if ball < 1.0:  # a small part: 0.1 mm of stock
-        text = text.replace("[program]\n", "[program]\nstock = 0.1\n", 1)
-    return text + extra
+    return gauge_ready(res.text, small=ball < 1.0)
 
 
 def _loop(tmp: Path, program: Path, truth_by_order, *, controller="linuxcnc", ball=1.0,
-          extra="", points=None):  # fmt: skip
+          points=None):  # fmt: skip
     """init -> plan -> simulate gauge -> read -> fit: the study, the fit and the truth."""
-    text = _study_text(program, tmp, ball=ball, extra=extra)
+    text = _study_text(program, tmp, ball=ball)
     (tmp / "study.toml").write_text(text)
     study = load_study(tmp / "study.toml")
     truth = dict(zip(study.profile.ids, truth_by_order(study), strict=True))
@@ -132,9 +128,8 @@ def test_the_loop_on_a_bore(tmp_path):
         return [np.array([0.006, 5e-5]) if f.kind == "line" else np.array([0.0, 0.0, 0.004])
                 for f in study.profile.features]  # fmt: skip
 
-    extra = "\n[plan]\nclearance = 0.3\nend_clearance = 0.05\n"
     study, fit, tr = _loop(tmp_path, GCODE / "04_bore_mm_t4_g41.ngc", truth, ball=0.25,
-                           extra=extra, points=6)  # fmt: skip
+                           points=6)  # fmt: skip
     assert any(f.id.startswith("bore_") for f in study.profile.features)
     _check(study, fit, tr, tmp_path)
 
