@@ -91,7 +91,7 @@ def main() -> None:
     for fid in hits:
         print(f"| {fid} | {hits[fid] / total[fid]:.3f} |")
     print(f"| all ({n} intervals over {args.loops} loops) | {sum(hits.values()) / n:.4f} |")
-    print(f"simulated machine {t_sim * 1e3:.0f} ms per loop; batch fit {t_fit * 1e3:.1f} ms per part")
+    print(f"simulated machine {t_sim * 1e3:.0f} ms per loop; batch fit {t_fit * 1e3:.1f} ms a part")
 
 
 if __name__ == "__main__":
