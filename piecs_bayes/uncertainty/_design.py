@@ -270,10 +270,28 @@ def points_for_ratio(
 ):
     """The least count in `[n_min, n_max]` whose designed points reach `ratio`, with
     its fractions, spread flags and prediction; `n_max` when none does (the
-    prediction says how far it falls short)."""
-    for n in range(n_min, n_max + 1):
-        ts, inside = design_fractions(feature, n, window, settings, fixed=fixed)
-        pred = predict_feature(feature, ts, settings, fixed=fixed)
-        if pred.ratio >= ratio:
-            return ts, inside, pred
-    return ts, inside, pred
+    prediction says how far it falls short). The predicted ratio grows with the count,
+    so the count is found by doubling, then bisection (a few designs, not one per
+    count)."""
+    memo = {}
+
+    def at(n):
+        if n not in memo:
+            ts, inside = design_fractions(feature, n, window, settings, fixed=fixed)
+            memo[n] = (ts, inside, predict_feature(feature, ts, settings, fixed=fixed))
+        return memo[n]
+
+    if at(n_min)[2].ratio >= ratio:
+        return at(n_min)
+    lo, step = n_min, 1  # at(lo) falls short
+    while True:
+        hi = min(lo + step, n_max)
+        if at(hi)[2].ratio >= ratio:
+            break
+        if hi == n_max:
+            return at(n_max)
+        lo, step = hi, 2 * step
+    while hi - lo > 1:  # at(lo) short, at(hi) reaches
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if at(mid)[2].ratio >= ratio else (mid, hi)
+    return at(hi)
