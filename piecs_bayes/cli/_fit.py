@@ -112,6 +112,12 @@ def register(sub) -> None:
         default=None,
         help="gauge, Fanuc: the control's X mode (default: the study's [plan] x_mode)",
     )
+    p.add_argument(
+        "--log-out",
+        type=Path,
+        default=None,
+        help="gauge, LinuxCNC: also write the (LOGOPEN,...) file of the program's LOG lines",
+    )
     p.add_argument("--parts", type=T.positive_int, default=36, help="batch: number of parts")
     p.add_argument(
         "--points",
@@ -233,6 +239,12 @@ def _simulate_gauge(args, console) -> int:
         pretravel=args.pretravel, x_mode_fanuc=args.fanuc_x_mode,
     )  # fmt: skip
     console.step(f"ran {run!r}")
-    path = run.write(args.out, protect=[args.program, args.truth, study.path])
+    keep = [args.program, args.truth, study.path]
+    path = run.write(args.out, protect=keep)
     console.say(f"wrote {path}")
+    if args.log_out is not None:
+        if not run.log_file:
+            raise InputError("the program opens no log ((LOGOPEN,...)): --log-out has nothing "
+                             "to write", file=str(args.program))  # fmt: skip
+        console.say(f"wrote {run.write_log(args.log_out, protect=[*keep, args.out])}")
     return 0

@@ -50,7 +50,8 @@ def plan_program(plan) -> str:
     return gauging_program(
         plan.home, plan.path, plan.points, controller=s["controller"], units=study.units,
         x_mode=s["x_mode"], tool=study.probe.tool, feed_mm_min=study.probe.feed,
-        header=_header(plan), probe_file=s["probe_file"], probe_on=s.get("probe_on"),
+        header=_header(plan), probe_file=s["probe_file"], log_file=s["log_file"],
+        probe_on=s.get("probe_on"),
         probe_off=s.get("probe_off"), program_number=s["program_number"],
     )  # fmt: skip
 

@@ -101,6 +101,8 @@ class GaugeMove:
     - `recording`: LinuxCNC: between PROBEOPEN and PROBECLOSE (its trip is written);
       Fanuc: between POPEN and PCLOS (its DPRNTs print).
     - `dprnt`: Fanuc: the DPRNT statements after this probe move (before the next).
+    - `log`: LinuxCNC: the texts of the ``(LOG,...)`` comments after this probe move
+      (before the next), between ``(LOGOPEN,name)`` and ``(LOGCLOSE)``.
     - `axes`: the axis letters the line programs (``"X"``, ``"Z"``, ``"XZ"``).
     """
 
@@ -118,6 +120,7 @@ class GaugeMove:
     recording: bool = False
     dprnt: tuple[DprntFormat, ...] = ()
     axes: str = ""
+    log: tuple[str, ...] = ()
 
     @property
     def length(self) -> float:
@@ -134,6 +137,7 @@ class GaugeProgram:
     x_mode: str
     probe_file: str | None
     name: str | None
+    log_file: str | None = None
 
     @property
     def probe_moves(self) -> tuple[GaugeMove, ...]:
@@ -174,6 +178,8 @@ class _State:
         self.label: str | None = None
         self.recording = False
         self.probe_file: str | None = None
+        self.log_file: str | None = None
+        self.logging = False
 
 
 def read_gauge_program(
@@ -206,10 +212,12 @@ def read_gauge_program(
         src = _lex_line(raw, "", number, name)
         if src.percent or src.is_blank:
             continue
+        if ctrl == "linuxcnc":
+            _log_comments(src, st, moves, name)
         move = _block(src, st, name)
         if move is not None:
             moves.append(move)
-    return GaugeProgram(tuple(moves), ctrl, mode, st.probe_file, name)
+    return GaugeProgram(tuple(moves), ctrl, mode, st.probe_file, name, st.log_file)
 
 
 def gauge_moves(text_or_path, **kwargs) -> tuple[GaugeMove, ...]:
@@ -245,6 +253,33 @@ def _fanuc_statement(raw: str, number: int, name, st: _State, moves: list) -> bo
         old = moves[last]
         moves[last] = replace(old, dprnt=(*old.dprnt, fmt))
     return True
+
+
+def _log_comments(src: SourceLine, st: _State, moves: list, name) -> None:
+    """LinuxCNC's ``(LOGOPEN,name)``, ``(LOG,text)`` and ``(LOGCLOSE)``: a LOG text
+    belongs to the last probe move before it (its parameters are that trip's)."""
+    for c in src.comments:
+        if c.kind != "paren":
+            continue
+        body = c.text.strip()
+        up = body.upper()
+        if up.startswith("LOGOPEN,"):
+            if st.log_file is not None:
+                raise _err("a second LOGOPEN: the simulated machine writes one log file", name,
+                           src.number, src.text)  # fmt: skip
+            st.log_file, st.logging = body[len("LOGOPEN,") :].strip(), True
+        elif up.startswith("LOGCLOSE"):
+            st.logging = False
+        elif up.startswith("LOG,"):
+            if not st.logging:
+                raise _err("LOG outside LOGOPEN ... LOGCLOSE: nothing would be written", name,
+                           src.number, src.text)  # fmt: skip
+            last = next((k for k in range(len(moves) - 1, -1, -1) if moves[k].kind == "probe"),
+                        None)  # fmt: skip
+            if last is None:
+                raise _err("LOG before any probe move: #5061-#5070 hold no trip", name,
+                           src.number, src.text)  # fmt: skip
+            moves[last] = replace(moves[last], log=(*moves[last].log, body[len("LOG,") :]))
 
 
 def _comments(src: SourceLine, st: _State, name) -> None:

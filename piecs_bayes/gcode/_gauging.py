@@ -9,7 +9,9 @@ Two dialects, one structure:
   configured words (`probe_on`; none by default: say so in `[plan] probe_on`, e.g.
   ``M64 P0``), ``(PROBEOPEN <file>)`` ... ``(PROBECLOSE)`` around the probe moves,
   which are ``G38.2`` toward the surface at the probing feed: LinuxCNC writes one
-  line per touch, in order (X a radius even in G7).
+  line per touch, in order (X a radius even in G7); and ``(LOGOPEN,<log file>)`` ...
+  ``(LOGCLOSE)`` with ``(LOG,<k> #5070 #5061 #5063)`` after each probe move: the
+  point's number, the success flag and the trip's X (radius) and Z, 6 decimals.
 - **Fanuc** (`"fanuc"`): the same moves with ``G31`` (skip) at ``G98`` (feed per
   minute), ``POPEN`` / ``DPRNT[X#5061[44]*Z#5062[44]]`` after each skip / ``PCLOS``,
   the probe as ``T<nn><nn>``; X words as the study's X mode says (a Fanuc control's
@@ -54,6 +56,7 @@ def gauging_program(
     feed_mm_min: float,
     header: Sequence[str],
     probe_file: str = "probe_points.txt",
+    log_file: str = "probe_log.txt",
     probe_on: str | None = None,
     probe_off: str | None = None,
     program_number: int = 9001,
@@ -102,6 +105,8 @@ def gauging_program(
     out.append("M5 (spindle stopped before any probe move)")
     out.append(probe_on if probe_on else "(probe on: no code configured, see [plan] probe_on)")
     out.append("POPEN" if fanuc else f"(PROBEOPEN {probe_file})")
+    if not fanuc:
+        out.append(f"(LOGOPEN,{log_file})")
     x_home = _coord(home[0], x=True, diameter=dia, inch=inch, decimals=dec)
     z_home = _coord(home[1], x=False, diameter=dia, inch=inch, decimals=dec)
     out += [f"G0 X{x_home} (retract line)", f"G0 Z{z_home}"]
@@ -121,8 +126,11 @@ def gauging_program(
                 out.append(f"DPRNT[X#5061[{digits}]*Z#5062[{digits}]]")
             else:
                 out.append(f"G38.2 {xz(p)} F{feed}")
+                out.append(f"(LOG,{pt.index} #5070 #5061 #5063)")
         else:
             out.append(f"G0 {xz(p)}")
+    if not fanuc:
+        out.append("(LOGCLOSE)")
     out.append("PCLOS" if fanuc else "(PROBECLOSE)")
     out.append(probe_off if probe_off else "(probe off: no code configured, see [plan] probe_off)")
     out.append("M30")

@@ -9,6 +9,10 @@ ball centre from the file. Formats (`[study] probe_format`):
   ball centre at the trip, nine numbers of ``%f`` (6 decimals, always ``.``),
   separated by spaces; X a **radius** even in G7; the work frame of the gauging
   program; the program's units (the plan's).
+- ``"linuxcnc-log"``: the ``(LOGOPEN,name)`` file of the plan's LinuxCNC program,
+  one ``(LOG,<k> #5070 #5061 #5063)`` line per probe: the point's number in the
+  plan, the success flag (1: tripped), X (a radius) and Z, 6 decimals; a flag of 0
+  is a failed probe, a number out of order a touch skipped or repeated.
 - ``"fanuc-dprnt"``: the lines of ``DPRNT[X#5061[44]*Z#5062[44]]``: ``X`` and a
   number, ``Z`` and a number (spaces between, leading zeros printed as spaces);
   X a diameter or a radius as `[probe] x_mode` says (a control setting).
@@ -41,7 +45,7 @@ from ._text import decode, read_bytes
 
 __all__ = ["PROBE_FORMATS", "PlanPoints", "read_plan_points", "read_control_probe"]
 
-PROBE_FORMATS = ("csv", "linuxcnc", "fanuc-dprnt")
+PROBE_FORMATS = ("csv", "linuxcnc", "linuxcnc-log", "fanuc-dprnt")
 _MM_PER = {"mm": 1.0, "in": 25.4}
 _NUM = r"[+-]?\s*(?:\d+\.?\d*|\.\d+)"
 _DPRNT = re.compile(rf"^\s*X\s*({_NUM})\s+Z\s*({_NUM})\s*$")
@@ -141,6 +145,35 @@ def _parse_linuxcnc(rows, name):
     return np.array(vals, dtype=float).reshape(-1, 2), 1.0
 
 
+def _parse_log(rows, name):
+    vals, flags = [], []
+    for j, (i, s) in enumerate(rows):
+        parts = s.split()
+        try:
+            nums = [float(p) for p in parts]
+        except ValueError:
+            nums = []
+        if len(nums) != 4 or not all(math.isfinite(v) for v in nums):
+            raise InputError(
+                "not a LOG line of the plan's program: expected '<point> <#5070> <X> <Z>' "
+                "(four numbers, '.' decimals)",
+                file=name,
+                line=i,
+                value=s.strip()[:80],
+            )
+        if nums[0] != j + 1:
+            raise InputError(
+                f"the line logs point {nums[0]:g}, expected point {j + 1} of the plan: a touch "
+                "skipped or repeated, or the log of another program",
+                file=name,
+                line=i,
+                value=nums[0],
+            )
+        flags.append(nums[1])
+        vals.append((nums[2], nums[3]))
+    return np.array(vals, dtype=float).reshape(-1, 2), np.array(flags, dtype=float)
+
+
 def _is_number(p: str) -> bool:
     try:
         float(p)
@@ -191,6 +224,21 @@ def read_control_probe(
         rows = _lines(path)
         pts, xs = _parse_linuxcnc(rows, name)
         lines = np.array([i for i, _ in rows], dtype=np.int64)
+    elif fmt == "linuxcnc-log":
+        rows = _lines(path)
+        pts, flags = _parse_log(rows, name)
+        xs = 1.0
+        lines = np.array([i for i, _ in rows], dtype=np.int64)
+        failed = np.flatnonzero(flags != 1.0)
+        if failed.size and failed[0] < len(plan):
+            j = int(failed[0])
+            raise InputError(
+                f"point {j + 1} of the plan (feature {plan.feature[j]!r}): #5070 is "
+                f"{flags[j]:g}, the probe did not trip (a failed probe)",
+                file=name,
+                line=int(lines[j]),
+                feature=plan.feature[j],
+            )
     elif fmt == "fanuc-dprnt":
         rows = _lines(path)
         pts, xs = _parse_dprnt(rows, name, x_mode)

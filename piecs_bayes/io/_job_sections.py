@@ -95,6 +95,7 @@ JOB_KEYS: dict[str, dict[str, tuple]] = {
         "probe_on": ("words", None),
         "probe_off": ("words", None),
         "probe_file": ("name", None),
+        "log_file": ("name", None),
         "program_number": ("int", (1, 9999, False, False)),
     },
 }

@@ -77,6 +77,7 @@ PLAN_DEFAULTS = {
     "controller": "linuxcnc",
     "x_mode": "diameter",
     "probe_file": "probe_points.txt",
+    "log_file": "probe_log.txt",
     "program_number": 9001,
 }
 _MAX_POINTS = 60

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -78,7 +79,8 @@ class GaugeTrip:
 @dataclass(frozen=True)
 class GaugeRun:
     """A gauging program run on the simulated machine: `trips` in program order and
-    `text`, the file the control writes (module docstring)."""
+    `text`, the file the control writes (module docstring); LinuxCNC: `log_text`, the
+    ``(LOGOPEN,...)`` file of the program's ``(LOG,...)`` lines (`log_file` its name)."""
 
     controller: str
     program: str | None
@@ -86,6 +88,8 @@ class GaugeRun:
     x_mode: str
     trips: tuple[GaugeTrip, ...]
     text: str
+    log_text: str = ""
+    log_file: str | None = None
 
     @property
     def centres(self) -> np.ndarray:
@@ -96,6 +100,11 @@ class GaugeRun:
         """Write `text` to `path` atomically, never over the program or `protect`."""
         keep = [*protect] + ([self.program] if self.program else [])
         return write_text_atomic(path, self.text, protect=keep)
+
+    def write_log(self, path, *, protect=()) -> Path:
+        """Write `log_text` (the LOG lines) to `path`, as `write`."""
+        keep = [*protect] + ([self.program] if self.program else [])
+        return write_text_atomic(path, self.log_text, protect=keep)
 
     def __repr__(self) -> str:
         hit = sum(t.touched for t in self.trips)
@@ -164,6 +173,25 @@ def read_truth(source, profile) -> dict[str, np.ndarray]:
             vec[f.param_names.index(key)] = float(v)
         out[fid] = vec
     return out
+
+
+_PARAM = re.compile(r"#(\d+)")
+
+
+def log_line(template: str, rec, touched: bool) -> str:
+    """A ``(LOG,...)`` text as LinuxCNC writes it after a probe: each ``#5061``,
+    ``#5063`` (the trip's X, a radius, and Z, program units) and ``#5070`` (1 on a
+    trip, 0 without) printed with 6 decimals; another parameter is refused."""
+    vals = {5061: rec[0], 5062: 0.0, 5063: rec[1], 5070: 1.0 if touched else 0.0}
+
+    def sub(m):
+        k = int(m.group(1))
+        if k not in vals:
+            raise InputError(f"LOG parameter #{k}: the simulated machine knows #5061-#5063 "
+                             "and #5070", value=k)  # fmt: skip
+        return f"{vals[k]:.6f}"
+
+    return _PARAM.sub(sub, template) + "\n"
 
 
 def probeopen_line(x: float, z: float) -> str:
@@ -235,6 +263,7 @@ def simulate_gauge(
     noise = np.random.default_rng(seed).normal(0.0, 1.0, len(probes)) * repeatability
     trips: list[GaugeTrip] = []
     lines: list[str] = []
+    log: list[str] = []
     last: tuple | None = None
     after_probe = False
     pos = None
@@ -263,6 +292,7 @@ def simulate_gauge(
             if move.recording and rec != last:
                 lines.append(probeopen_line(*rec))
                 written, last = 1, rec
+            log += [log_line(t, rec, trip.touched) for t in move.log]
         else:
             unit = _units(move)
             vals = {5061: trip.centre[0] * (2.0 if prog.x_mode == "diameter" else 1.0) / unit,
@@ -276,7 +306,7 @@ def simulate_gauge(
             written = len(move.dprnt)
         trips.append(replace(trip, written=written))
     return GaugeRun(prog.controller, prog.name, prog.probe_file, prog.x_mode, tuple(trips),
-                    "".join(lines))  # fmt: skip
+                    "".join(lines), "".join(log), prog.log_file)  # fmt: skip
 
 
 def _probe(prog, move, start, pieces, r, noise, pretravel, index) -> GaugeTrip:

@@ -154,3 +154,24 @@ def test_the_study_keys_are_checked(gauged):
     (tmp / "other.json").write_text(body)
     with pytest.raises(InputError, match="names feature.s. 'round'"):
         load_probe_data(replace(other, probe_plan=tmp / "other.json"))
+
+
+def test_the_log_lines_of_the_plan_s_program_are_read_and_checked(gauged):
+    """`linuxcnc-log`: '<point> <#5070> <X> <Z>' per probe, as the program's
+    (LOG,k #5070 #5061 #5063) prints it; the same points as the PROBEOPEN file."""
+    tmp, study, plan, centres = gauged
+    pl = read_plan_points(tmp / "plan.json")
+    log = [f"{k} 1.000000 {x:.6f} {z:.6f}\n" for k, (x, z) in enumerate(centres, start=1)]
+    (tmp / "log.txt").write_text("".join(log))
+    got = read_control_probe(tmp / "log.txt", "linuxcnc-log", pl)
+    np.testing.assert_array_equal(got.points, centres)
+    # #5070 = 0: the probe did not trip
+    msg = _refused(tmp, pl, log[:4] + [log[4].replace(" 1.000000 ", " 0.000000 ")] + log[5:],
+                   fmt="linuxcnc-log")  # fmt: skip
+    assert "bad.txt:5" in msg and "point 5 of the plan" in msg and "#5070 is 0" in msg
+    # a touch repeated: the numbers run out of order
+    msg = _refused(tmp, pl, log[:3] + [log[2]] + log[3:-1], fmt="linuxcnc-log")
+    assert "bad.txt:4: the line logs point 3, expected point 4 of the plan" in msg
+    # not a LOG line
+    msg = _refused(tmp, pl, log[:1] + ["1 1.0 13.0\n"] + log[2:], fmt="linuxcnc-log")
+    assert "bad.txt:2: not a LOG line of the plan's program" in msg

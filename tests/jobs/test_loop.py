@@ -51,21 +51,24 @@ def _loop(tmp: Path, program: Path, truth_by_order, *, controller="linuxcnc", ba
     (tmp / "study.toml").write_text(text)
     study = load_study(tmp / "study.toml")
     truth = dict(zip(study.profile.ids, truth_by_order(study), strict=True))
-    plan = plan_study(study, points=points, controller=controller)
+    plan = plan_study(study, points=points, controller="fanuc" if controller == "fanuc" else None)
     (tmp / "plan").mkdir()
     (tmp / "plan" / "plan.json").write_text(plan_json(plan))
-    prog = tmp / "plan" / ("gauging.ngc" if controller == "linuxcnc" else "gauging_fanuc.nc")
+    prog = tmp / "plan" / ("gauging_fanuc.nc" if controller == "fanuc" else "gauging.ngc")
     prog.write_text(plan_program(plan))
     run = simulate_gauge(
         prog, study, truth, repeatability=study.probe.repeatability, seed=11,
         x_mode_fanuc=study.probe.x_mode if controller == "fanuc" else None,
     )  # fmt: skip
     run.write(tmp / "probe_points.txt")
-    fmt = "linuxcnc" if controller == "linuxcnc" else "fanuc-dprnt"
+    fmt, name = ("fanuc-dprnt", "probe_points.txt") if controller == "fanuc" else (
+        ("linuxcnc", "probe_points.txt") if controller == "linuxcnc" else
+        ("linuxcnc-log", "probe_log.txt"))  # fmt: skip
+    if controller == "linuxcnc-log":
+        run.write_log(tmp / "probe_log.txt")
     text = text.replace(
         "probe_files = []",
-        f'probe_files = ["probe_points.txt"]\nprobe_format = "{fmt}"\n'
-        'probe_plan = "plan/plan.json"',
+        f'probe_files = ["{name}"]\nprobe_format = "{fmt}"\nprobe_plan = "plan/plan.json"',
     )
     (tmp / "study.toml").write_text(text)
     study = load_study(tmp / "study.toml")
@@ -112,7 +115,7 @@ def _with_deviations(fit, truth):
     return replace(fit, fits=fits)
 
 
-@pytest.mark.parametrize("controller", ["linuxcnc", "fanuc"])
+@pytest.mark.parametrize("controller", ["linuxcnc", "linuxcnc-log", "fanuc"])
 def test_the_demo_loop(tmp_path, controller):
     study, fit, truth = _loop(tmp_path, DEMO / "finish.ngc", _demo_truth, controller=controller)
     chars = _check(study, fit, truth, tmp_path)

@@ -215,7 +215,8 @@ def test_probeopen_writes_no_exact_repeat(cases):
     text = plan_program(plan_study(study, points=3))
     lines = text.splitlines(keepends=True)
     k = next(i for i, x in enumerate(lines) if x.startswith("G38.2"))
-    twice = "".join(lines[: k + 2] + lines[k - 1 : k + 2] + lines[k + 2 :])  # probe point 1 again
+    # probe point 1 again: its label, G38.2, LOG and the way back
+    twice = "".join(lines[: k + 3] + lines[k - 1 : k + 3] + lines[k + 3 :])
     run = simulate_gauge(twice, study, truth, repeatability=0.0, seed=0)
     assert run.trips[0].centre == run.trips[1].centre
     assert [t.written for t in run.trips[:3]] == [1, 0, 1]
