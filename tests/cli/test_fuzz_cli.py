@@ -290,11 +290,11 @@ def test_each_plan_refusal_gets_its_one_line_message(capsys, demo_copy, case):
 #: `simulate gauge` on the demo plan's program with one change: (name, old, new in the
 #: program; truth text edit; extra argv; exit code; message; line named or None)
 SIM_CLASSES = [
-    ("sim_g95", "G90 G94", "G90 G95", None, [], 2, "Cannot probe with feed per rev mode (G95", 14),
-    ("sim_comp", "G40 G90", "G41 G90", None, [], 2, "Cannot probe with cutter radius compensation on", 14),
-    ("sim_zero", "G38.2 X25.0000 Z-1.2000", "G38.2 X29.0000 Z-1.2000", None, [], 2, "Start point too close to probe point", 14),
-    ("sim_word", "G38.2 X25.0000 Z-1.2000", "G38.2 X25.0000 Z-1.2000 E2", None, [], 2, "Unknown word starting with E", 14),
-    ("sim_miss", None, None, ('"offset": 0.021670880000000302', '"offset": -0.6'), [], 1, "G38.2 move finished without making contact (", 14),
+    ("sim_g95", "G90 G94", "G90 G95", None, [], 2, "Cannot probe with feed per rev mode (G95", 15),
+    ("sim_comp", "G40 G90", "G41 G90", None, [], 2, "Cannot probe with cutter radius compensation on", 15),
+    ("sim_zero", "G38.2 X25.0000 Z-1.2000", "G38.2 X29.0000 Z-1.2000", None, [], 2, "Start point too close to probe point", 15),
+    ("sim_word", "G38.2 X25.0000 Z-1.2000", "G38.2 X25.0000 Z-1.2000 E2", None, [], 2, "Unknown word starting with E", 15),
+    ("sim_miss", None, None, ('"offset": 0.021670880000000302', '"offset": -0.6'), [], 1, "G38.2 move finished without making contact (", 15),
     ("sim_truth_value", None, None, ('"radius": 0.004', '"radius": null'), [], 2, "radius: expected a finite number (mm or rad), got None", 44),
     ("sim_truth_json", None, None, ('"deviations": {', '"deviations": {,'), [], 2, "not JSON", 24),
     ("sim_truth_feature", None, None, ('"taper"', '"tapr"'), [], 2, "unknown feature id 'tapr'", 33),
