@@ -62,6 +62,7 @@ class PlanPoints:
     centre: np.ndarray
     approach: np.ndarray
     target: np.ndarray
+    x_mode: str = "diameter"
 
     def __len__(self) -> int:
         return len(self.feature)
@@ -85,8 +86,9 @@ def read_plan_points(path) -> PlanPoints:
             )
 
         plan = PlanPoints(
-            name, body["units"], feature, arr("centre", k), arr("approach", 1.0), arr("target", k)
-        )
+            name, body["units"], feature, arr("centre", k), arr("approach", 1.0),
+            arr("target", k), str(body.get("program_x_mode", "diameter")),
+        )  # fmt: skip
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"not a probe plan of piecs-bayes: {exc}", file=name) from None
     if not len(plan):
@@ -199,14 +201,16 @@ def _parse_dprnt(rows, name, x_mode):
 
 
 def read_control_probe(
-    path, fmt: str, plan: PlanPoints, *, x_mode: str = "diameter", limit_mm: float = 0.5,
+    path, fmt: str, plan: PlanPoints, *, x_mode: str | None = None, limit_mm: float = 0.5,
     part: str | None = None,
 ) -> ProbeData:  # fmt: skip
     """Read a control's probe file against its plan (module docstring).
 
     **Arguments:** `path`; `fmt` one of `PROBE_FORMATS` but ``"csv"``; `plan` (from
-    `read_plan_points`); `x_mode`: how a Fanuc file writes X (LinuxCNC's is always a
-    radius); `limit_mm`: the largest distance of a ball centre from its planned one;
+    `read_plan_points`); `x_mode`: how a Fanuc file writes X (default: the plan's
+    program X mode, the control's setting the program was written for; LinuxCNC's is
+    always a radius); `limit_mm`: the largest distance of a ball centre from its
+    planned one;
     `part`: the part id (default: the file's stem).
 
     **Returns:** `ProbeData` in mm, radius X, the work frame, with the plan's
@@ -241,7 +245,7 @@ def read_control_probe(
             )
     elif fmt == "fanuc-dprnt":
         rows = _lines(path)
-        pts, xs = _parse_dprnt(rows, name, x_mode)
+        pts, xs = _parse_dprnt(rows, name, x_mode or plan.x_mode)
         lines = np.array([i for i, _ in rows], dtype=np.int64)
     else:
         raise InputError(
@@ -269,9 +273,13 @@ def read_control_probe(
 
 
 def _check_points(pts, plan, lines, name, k, xs, limit_mm) -> None:
-    """Refuse the first failed probe and the first point far from its planned centre."""
-    written = 10.0 ** -(6 if xs == 1.0 else 4) * k  # the file's last digit, in mm
-    failed = np.all(np.abs(pts - plan.target) <= 1.5 * written, axis=1)
+    """Refuse the first failed probe and the first point far from its planned centre.
+
+    A failed probe reports the move's end point: the target, to the rounding of the
+    program's words (4 decimals in mm, 5 in inches; a diameter word halves it) and of
+    the file's."""
+    rounding = (10.0 ** -(4 if k == 1.0 else 5) + 10.0 ** -(6 if xs == 1.0 else 4)) * k
+    failed = np.hypot(*(pts - plan.target).T) <= 2.0 * rounding
     dist = np.hypot(*(pts - plan.centre).T)
     far = dist > limit_mm
     if not (failed.any() or far.any()):

@@ -106,9 +106,7 @@ def _probe_reader(study: Study):
             feature=unknown[0],
         )
     limit = float(study.plausibility.get("max_distance", 0.5))
-    return lambda f: read_control_probe(
-        f, study.probe_format, plan, x_mode=study.probe.x_mode, limit_mm=limit
-    )
+    return lambda f: read_control_probe(f, study.probe_format, plan, limit_mm=limit)
 
 
 def _refuse_repeated_files(files) -> None:

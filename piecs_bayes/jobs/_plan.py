@@ -23,8 +23,8 @@ feature the ball cannot touch anywhere (a groove narrower than the ball).
 
 **Order.** Nearest neighbour from the retract line, then 2-opt on the lengths of the
 safe moves: the shortest travel found. **Time**: rapid moves at `[plan] rapid_feed`
-(default 4,000 mm/min), probe moves (stand-off to contact and back) at the
-probing feed.
+(default 4,000 mm/min) and the way back from each touch, probe moves (stand-off to
+the nominal contact) at the probing feed.
 """
 
 from __future__ import annotations
@@ -195,6 +195,8 @@ def _windows(study, s):
     out = {}
     for i, f in enumerate(prof.features):
         w = probe_window(prof, i, r, s["end_clearance"], s["stock"] + s["clearance"])
+        if w is not None and (w[1] - w[0]) * f.length < s["spacing"]:
+            w = None  # a point, or less than the spacing: no room for distinct points
         if w is None:
             raise InputError(
                 f"the probe ball (radius {r:g} mm) cannot touch feature {f.id!r} anywhere "
@@ -211,7 +213,7 @@ def _windows(study, s):
 def _sigma_dof(study, counts: dict) -> float:
     if study.fit.known_sigma:
         return math.inf
-    resid = sum(n - study.profile[fid].nparams for fid, n in counts.items())
+    resid = sum(max(n - study.profile[fid].nparams, 0) for fid, n in counts.items() if n > 0)
     prior = study.probe.repeatability_dof if study.probe.repeatability_dof else 0.0
     return float(max(resid, 0) + prior) if resid + prior > 0 else float(DECLARED_DOF)
 

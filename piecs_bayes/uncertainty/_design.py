@@ -18,13 +18,15 @@ advance which of them will be the worst): a G-optimal (minimax) design in the
 sense of Kiefer and Wolfowitz, restricted to the feature's usable window.
 
 **The design** (`design_fractions`): a share of the points (`inside_share`,
-default 0.2 rounded down, at least one from five points on) is spread evenly inside the
-window, where form errors and chips stay visible; the others are placed by
+default 0.2 rounded down, at least one from five points on; none with a share of
+0) is spread evenly inside the window, where form errors and chips stay visible;
+the others are placed by
 coordinate exchange (Fedorov) on a grid of 201 candidate fractions, keeping a
 minimum spacing along the feature (`spacing`, or less where the window is
 short), to minimise the criterion. For a line the optimum puts them at both
 ends of the window; for an arc at its ends and middle. The result is never worse
-than the uniform spacing of the same count (that one is kept when it is not).
+than the uniform spacing of the same count (that one is kept when it is not, and
+when the window is too short for the count at the spacing).
 
 **Counts** (`points_for_ratio`): the least count whose expanded uncertainty
 $U = k_t\,u$ gives the tolerance-to-U ratio $(T_\text{hi} - T_\text{lo}) / (2U)$
@@ -138,7 +140,7 @@ def _nearest_free(cand, inside, targets, min_gap) -> np.ndarray:
         j = int(np.argmin(np.where(ok, np.abs(cand - target), np.inf)))
         idx.append(j)
         taken.append(cand[j])
-    return np.asarray(idx)
+    return np.asarray(idx, dtype=int)
 
 
 def _even_start(cand, inside, n_out, min_gap) -> np.ndarray:
@@ -188,9 +190,11 @@ def design_fractions(feature, n: int, window, settings: DesignSettings, *, fixed
     free = _free_columns(feature, fixed)
     t0, t1 = window
     uniform = uniform_fractions(n, window)
-    if n < 2 or t1 <= t0:
-        return uniform, np.zeros(n, dtype=bool)
-    n_in = max(1, int(settings.inside_share * n)) if n >= 5 else 0
+    if n < 2 or (t1 - t0) * feature.length < (n - 1) * settings.spacing:
+        return uniform, np.zeros(n, dtype=bool)  # no room for a design at the spacing
+    share = settings.inside_share
+    n_in = (max(1, int(share * n)) if share > 0 else 0) if n >= 5 else 0
+    n_in = min(n_in, n - 1)
     inside = t0 + (t1 - t0) * np.arange(1, n_in + 1) / (n_in + 1)
     cand = np.linspace(t0, t1, _CANDIDATES)
     jac_c = _jacobian(feature, cand, free)
@@ -223,6 +227,8 @@ def augment_fractions(feature, existing, n_add: int, window, settings: DesignSet
     points held fixed): the plan of a "measure more" verdict."""
     free = _free_columns(feature, fixed)
     t0, t1 = window
+    if n_add <= 0:
+        return np.zeros(0)
     have = np.asarray(existing, dtype=float)
     cand = np.linspace(t0, t1, _CANDIDATES)
     jac_c = _jacobian(feature, cand, free)

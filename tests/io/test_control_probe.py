@@ -175,3 +175,20 @@ def test_the_log_lines_of_the_plan_s_program_are_read_and_checked(gauged):
     # not a LOG line
     msg = _refused(tmp, pl, log[:1] + ["1 1.0 13.0\n"] + log[2:], fmt="linuxcnc-log")
     assert "bad.txt:2: not a LOG line of the plan's program" in msg
+
+
+@pytest.mark.parametrize("fmt", ["linuxcnc", "fanuc-dprnt"])
+def test_a_failed_probe_at_its_rounded_target_is_refused(gauged, fmt):
+    """The control reports a failed move's end point: the program's target words,
+    rounded to 4 decimals (mm); found along the approach, not only by equality."""
+    tmp, study, plan, centres = gauged
+    pl = read_plan_points(tmp / "plan.json")
+    pts = centres.copy()
+    t = plan.points[8].target
+    pts[8] = np.round(t, 4)  # as the G38.3 / G31 word wrote it
+    if fmt == "linuxcnc":
+        lines = [f"{x:f} 0 {z:f} 0 0 0 0 0 0\n" for x, z in pts]
+    else:  # the plan's program writes X as a diameter
+        lines = [f"X{2 * x:10.4f} Z{z:10.4f}\n" for x, z in pts]
+    msg = _refused(tmp, pl, lines, fmt=fmt)
+    assert "bad.txt:9" in msg and "point 9 of the plan" in msg and "failed probe" in msg

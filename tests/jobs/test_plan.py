@@ -310,3 +310,36 @@ feed = 200.0
     p = tmp_path / "groove.toml"
     p.write_text(text)
     return load_study(p)
+
+
+def test_short_windows_and_shares_give_distinct_points(study):
+    """A window too short for the count at the spacing gets the uniform design (no
+    two points at one place); a share of 0 puts no point inside."""
+    f = study.profile["fillet"]
+    s = replace(_settings(study), spacing=0.1)
+    ts, inside = design_fractions(f, 8, (0.10, 0.12), s)  # 0.09 mm for 8 points
+    assert len(set(np.round(ts, 12))) == 8 and not inside.any()
+    ts, inside = design_fractions(f, 6, (0.2, 0.8), replace(s, inside_share=0.0))
+    assert not inside.any() and len(ts) == 6
+    from piecs_bayes.uncertainty import augment_fractions
+
+    assert augment_fractions(f, [0.3], 0, (0.2, 0.8), s).size == 0
+
+
+def test_a_feature_with_a_one_point_window_is_refused(tmp_path):
+    """A pin: a face from the axis to 4.8 mm diameter. With a 1 mm ball the face's
+    usable window is one point at most: refused, not probed 60 times at one place."""
+    text = _groove_study(tmp_path, width=8.0).path.read_text()
+    text = text.replace(
+        "start = [10.0, 0.0]\nend = [30.0, 0.0]", "start = [0.0, 0.0]\nend = [4.8, 0.0]"
+    )
+    text = text.replace(
+        "start = [30.0, 0.0]\nend = [30.0, -10.0]", "start = [4.8, 0.0]\nend = [4.8, -10.0]"
+    )
+    text = text.replace(
+        "start = [30.0, -10.0]\nend = [20.0, -10.0]", "start = [4.8, -10.0]\nend = [20.0, -10.0]"
+    )
+    assert text.count("4.8") == 4, text
+    (tmp_path / "pin.toml").write_text(text)
+    with pytest.raises(InputError, match="cannot touch feature 'face'"):
+        plan_study(load_study(tmp_path / "pin.toml"), points=5)
