@@ -23,6 +23,7 @@ arcs are sampled as polylines with a chord error under 0.1 µm.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -40,7 +41,7 @@ __all__ = [
 
 #: largest distance of an arc's polyline from the arc (mm)
 CHORD_ERROR_MM = 1e-4
-_WINDOW_SAMPLES = 2001
+_WINDOW_SAMPLES = 257
 
 
 def feature_polyline(f: Feature) -> np.ndarray:
@@ -54,11 +55,29 @@ def feature_polyline(f: Feature) -> np.ndarray:
 
 
 def ball_centres(f: Feature, t, ball_radius: float):
-    """Nominal contact points, outward normals and ball centres at fractions `t`."""
+    """Nominal contact points, outward normals and ball centres at fractions `t`
+    (NumPy: the nominal geometry of `Line` and `Arc`, without a JAX dispatch)."""
     t = np.atleast_1d(np.asarray(t, dtype=float))
-    q = np.asarray(f.point_at(t), dtype=float)
-    n = np.asarray(f.outward_normal(q), dtype=float)
+    if isinstance(f, Arc):
+        a0, sweep = f._angles()
+        ang = a0 + t * sweep
+        radial = np.stack([np.sin(ang), np.cos(ang)], axis=-1)
+        q = np.asarray(f.center, dtype=float) + f.radius * radial
+        n = f.sense * radial
+    else:
+        p0, p1 = np.asarray(f.p0, dtype=float), np.asarray(f.p1, dtype=float)
+        q = p0 + t[:, None] * (p1 - p0)
+        n = np.broadcast_to(_line_normal(f), q.shape)
     return q, n, q + ball_radius * n
+
+
+@functools.lru_cache(maxsize=1024)
+def _line_normal(f) -> np.ndarray:
+    """A line's outward normal, from its own model (once per line)."""
+    mid = 0.5 * (np.asarray(f.p0, dtype=float) + np.asarray(f.p1, dtype=float))
+    n = np.asarray(f.outward_normal(mid[None]), dtype=float)[0]
+    n.flags.writeable = False
+    return n
 
 
 def point_distance(p, polyline: np.ndarray) -> np.ndarray:
@@ -96,43 +115,62 @@ def path_distance(p0, p1, polyline: np.ndarray) -> float:
     return float(min(ends, back))
 
 
+def _usable(profile, index: int, t, ball_radius, end_clearance, standoff, polys):
+    """Which fractions `t` of feature `index` are usable contact points (module doc)."""
+    f = profile.features[index]
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    _, n, c = ball_centres(f, t, ball_radius)
+    s = c + standoff * n
+    ok = np.ones(t.size, dtype=bool)
+    slack = 2.0 * CHORD_ERROR_MM  # the chords of a concave arc lie inside it
+    for j, poly in enumerate(polys):
+        d = point_distance(c, poly)
+        ok &= d >= (ball_radius - slack if j == index else ball_radius + end_clearance)
+        if standoff > 0.0:
+            ok &= point_distance(s, poly) >= ball_radius + standoff - slack
+    along = t * f.length
+    last = len(profile.features) - 1
+    start_kind = profile.junctions[index - 1] if index > 0 else "free"
+    end_kind = profile.junctions[index] if index < last else "free"
+
+    def margin(kind):
+        return end_clearance if kind == "tangent" else ball_radius + end_clearance
+
+    ok &= along >= margin(start_kind) - 1e-12
+    ok &= f.length - along >= margin(end_kind) - 1e-12
+    return ok
+
+
 def probe_window(
     profile, index: int, ball_radius: float, end_clearance: float, standoff: float = 0.0
 ):
     """The usable fractions `(t0, t1)` of feature `index` of `profile` (see the module
     docstring), or None when the ball cannot touch it anywhere. With `standoff` > 0 the
     probe move's start, `standoff` beyond the ball at contact along the normal, must
-    also keep `standoff` from every feature (a concave corner narrows the window)."""
-    f = profile.features[index]
+    also keep `standoff` from every feature (a concave corner narrows the window).
+
+    The longest run of usable fractions on a grid of 257, its edges then found by
+    bisection to 1e-6 of the feature."""
+    polys = [feature_polyline(g) for g in profile.features]
+
+    def usable(t):
+        return _usable(profile, index, t, ball_radius, end_clearance, standoff, polys)
+
     t = np.linspace(0.0, 1.0, _WINDOW_SAMPLES)
-    _, n, c = ball_centres(f, t, ball_radius)
-    s = c + standoff * n
-    ok = np.ones(t.size, dtype=bool)
-    slack = 2.0 * CHORD_ERROR_MM  # the chords of a concave arc lie inside it
-    for j, g in enumerate(profile.features):
-        poly = feature_polyline(g)
-        d = point_distance(c, poly)
-        if j == index:
-            ok &= d >= ball_radius - slack
-        else:
-            ok &= d >= ball_radius + end_clearance
-        if standoff > 0.0:
-            ok &= point_distance(s, poly) >= ball_radius + standoff - slack
-    s = t * f.length
-    n = len(profile.features)
-    junctions = profile.junctions
-    start_kind = junctions[index - 1] if index > 0 else "free"
-    end_kind = junctions[index] if index < n - 1 else "free"
-
-    def margin(kind):
-        return end_clearance if kind == "tangent" else ball_radius + end_clearance
-
-    ok &= s >= margin(start_kind) - 1e-12
-    ok &= f.length - s >= margin(end_kind) - 1e-12
+    ok = usable(t)
     if not np.any(ok):
         return None
-    # the longest run of usable samples
     edges = np.diff(np.concatenate([[0], ok.astype(int), [0]]))
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
     k = int(np.argmax(stops - starts))
-    return float(t[starts[k]]), float(t[stops[k]])
+    lo_i, hi_i = int(starts[k]), int(stops[k])
+
+    def edge(inside, outside):
+        for _ in range(20):
+            mid = 0.5 * (inside + outside)
+            inside, outside = (mid, outside) if usable(mid)[0] else (inside, mid)
+        return inside
+
+    t0 = float(t[lo_i]) if lo_i == 0 else edge(float(t[lo_i]), float(t[lo_i - 1]))
+    t1 = float(t[hi_i]) if hi_i == t.size - 1 else edge(float(t[hi_i]), float(t[hi_i + 1]))
+    return t0, t1
