@@ -151,8 +151,8 @@ def coverage_check(
         rows = slice(i * n_pts, (i + 1) * n_pts)
         k = keep[rows]
         u = linearised_toolpath(
-            profile, sim["feature"][rows][k], sim["points"][rows][k],
-            {fid: v[i] for fid, v in values.items()}, ball_radius=ball_radius,
+            profile, sim["feature"][rows], sim["points"][rows],
+            {fid: v[i] for fid, v in values.items()}, ball_radius=ball_radius, inlier=k,
             sigma=float(bf.sigma[i]), dof=float(bf.sigma_dof[i]), transform=transform,
             source_sd=source_sd, grid=grid, p=p, band_sims=band_sims,
             loss=loss if method == "robust" else "linear",

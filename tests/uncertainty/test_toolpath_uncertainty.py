@@ -130,3 +130,29 @@ def test_a_scale_dominated_study_has_wider_bounds_in_the_expected_ratio():
     k = FULL.ids.index("shoulder")
     mid = np.flatnonzero((scale.grid.feature == k) & np.isclose(scale.grid.t, 0.5))[0]
     assert scale.offset_sd[mid] / noise.offset_sd[mid] == pytest.approx(expected, rel=1e-5)
+
+
+def test_all_points_with_an_inlier_mask_equal_the_inliers_alone():
+    """`inlier=`: every trigger given and the fit's outliers masked gives the inliers'
+    result (to rounding), so that parts with other outliers share one compiled
+    Jacobian (the coverage check)."""
+    sim = simulate_probe(
+        FULL, TRUTH_ALL, ball_radius=1.0, points=DEMO_POINTS, noise_sd=0.0015, rng=7,
+        outliers=(("dia_30", 3, 0.05), ("fillet", 2, -0.04)),
+    )  # fmt: skip
+    keep = np.ones(len(sim["feature"]), dtype=bool)
+    keep[[int(np.flatnonzero(sim["feature"] == "dia_30")[3]),
+          int(np.flatnonzero(sim["feature"] == "fillet")[2])]] = False  # fmt: skip
+    fit = fit_profile(FULL, sim["feature"][keep], sim["points"][keep], ball_radius=1.0,
+                      sigma=0.0015)  # fmt: skip
+    kw = dict(ball_radius=1.0, sigma=0.0015, dof=30.0, source_sd={"x_centre": 0.001},
+              band_sims=2**12)  # fmt: skip
+    a = linearised_toolpath(FULL, sim["feature"][keep], sim["points"][keep], fit.deviations, **kw)
+    b = linearised_toolpath(FULL, sim["feature"], sim["points"], fit.deviations, inlier=keep, **kw)
+    np.testing.assert_allclose(b.vertex_cov, a.vertex_cov, rtol=1e-9, atol=1e-18)
+    np.testing.assert_allclose(b.offset_sd, a.offset_sd, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(b.bands.simultaneous_upper, a.bands.simultaneous_upper, rtol=1e-9)
+    assert b.bands.crit_simultaneous == pytest.approx(a.bands.crit_simultaneous, rel=1e-9)
+    for fid in a.deviation_cov:
+        np.testing.assert_allclose(b.deviation_cov[fid], a.deviation_cov[fid], rtol=1e-9,
+                                   atol=1e-18)  # fmt: skip
