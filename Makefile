@@ -20,8 +20,11 @@ $(STAMP): pyproject.toml constraints.txt
 demo: $(STAMP)
 	$(BIN)/piecs-bayes demo data/demo/study.toml --out reports/demo
 
+# Two workers on two cores, each with one BLAS thread: OpenBLAS's own threads spin
+# while they wait, and two workers' worth of them on two cores doubled the suite's
+# time (12:30 against 6:15 on this 2-core kind of machine, the same tests)
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2
 
 # Peer agreement with LinuxCNC's rs274 (Debian package linuxcnc-uspace): installs
 # it when missing, then runs the tests marked rs274 (they fail here if it is absent).
