@@ -21,6 +21,12 @@ from ._plausibility import check_probe_data as check_probe_data
 from ._probe import ProbeData as ProbeData
 from ._probe import read_probe_csv as read_probe_csv
 from ._probe import read_probe_csv_by_rows as read_probe_csv_by_rows
+from ._probe_cal import CALIBRATION_FORMAT as CALIBRATION_FORMAT
+from ._probe_cal import ProbeCalibration as ProbeCalibration
+from ._probe_cal import approach_angle as approach_angle
+from ._probe_cal import coefficient_names as coefficient_names
+from ._probe_cal import lobe_basis as lobe_basis
+from ._probe_cal import read_probe_calibration as read_probe_calibration
 from ._settings import APPLY_ROUTES as APPLY_ROUTES
 from ._settings import CompensationSettings as CompensationSettings
 from ._settings import FitSettings as FitSettings

@@ -1,0 +1,269 @@
+r"""A probe calibration: the effective ball radius by approach direction, and its file.
+
+A touch-trigger probe triggers after a pretravel that depends on the direction of
+approach, so the distance from a recorded ball centre to the surface (the
+**effective radius**) is a function of the approach angle $\theta$ in the XZ plane:
+
+$$r(\theta) = r_0 + \sum_{k \in \text{orders}} a_k \cos k\theta + b_k \sin k\theta .$$
+
+$\theta$ is the angle of the unit approach direction $a = (a_x, a_z)$ (the ball's
+travel into the surface, part frame, radius X) from $+X$ toward $+Z$:
+$\theta = \operatorname{atan2}(a_z, a_x)$; a diameter probed from outside is
+approached at 180 degrees, a face probed from $+Z$ at -90 degrees.
+
+The first order ($a_1 \cos\theta + b_1 \sin\theta$) is a shift of every recorded
+centre by the same vector: the probe's position offset, which an artefact's free
+centre absorbs and the machine's offsets carry. It is never part of $r(\theta)$;
+the orders are 2 and 3 at most (a kinematic seat's three lobes are order 3).
+
+`ProbeCalibration` is what `piecs-bayes calibrate-probe` writes (``probe_cal.json``)
+and what `[probe] calibration` reads: the coefficients $c = (r_0, a_k, b_k, \dots)$,
+their covariance $\Sigma$ and dof. In a part's fit each point is corrected to the
+calibrated radius at its approach (`ProbeCalibration.radius`), and $\Sigma$ is one
+systematic source correlated over all points through the coefficients: with
+$\Sigma = V \Lambda V^\top$, the independent components $z_j \sim N(0, \lambda_j)$
+move the radius at $\theta$ by $z_j\, (B(\theta) V)_j$ (`ProbeCalibration.components`),
+so every propagation that handles independent sources carries it exactly.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = [
+    "CALIBRATION_FORMAT",
+    "ProbeCalibration",
+    "approach_angle",
+    "coefficient_names",
+    "lobe_basis",
+    "read_probe_calibration",
+]
+
+#: The ``format`` key of a probe_cal.json this version reads and writes.
+CALIBRATION_FORMAT = "piecs-bayes probe calibration 1"
+#: The orders of r(theta) a calibration may hold (order 1 is the probe's offset).
+ALLOWED_ORDERS = (2, 3)
+
+
+def approach_angle(approach) -> np.ndarray:
+    """The approach angle (rad, in (-pi, pi]) of unit directions `approach` ``(n, 2)``
+    (x, z): ``atan2(a_z, a_x)``."""
+    a = np.asarray(approach, dtype=float).reshape(-1, 2)
+    return np.arctan2(a[:, 1], a[:, 0])
+
+
+def coefficient_names(orders) -> tuple[str, ...]:
+    """``("r0", "a2", "b2", "a3", "b3")`` for orders ``(2, 3)``."""
+    return ("r0",) + tuple(f"{c}{k}" for k in orders for c in ("a", "b"))
+
+
+def lobe_basis(theta, orders) -> np.ndarray:
+    """``(n, 1 + 2 len(orders))``: 1, cos k theta, sin k theta for each order."""
+    t = np.asarray(theta, dtype=float).reshape(-1)
+    cols = [np.ones_like(t)]
+    for k in orders:
+        cols += [np.cos(k * t), np.sin(k * t)]
+    return np.stack(cols, axis=1)
+
+
+@dataclass(frozen=True)
+class ProbeCalibration:
+    """A probe's effective radius by approach direction with its uncertainty.
+
+    - `orders`: the Fourier orders in r(theta) (``()``: one radius, K = 0).
+    - `coefficients` ``(p,)`` in `coefficient_names(orders)` order (mm), `cov`
+      ``(p, p)`` (mm^2), `dof` (Welch-Satterthwaite dof of the coefficients; inf when
+      the certificate dominates), `residual_sd` (mm).
+    - `probing_error`: the range of r(theta) over the calibration's directions (mm,
+      ISO 10360-5 style: the range of radii on the artefact).
+    - `artefact`: kind, certified size, expanded uncertainty and k, as the file gave.
+    - `feed` (mm/min, None when unknown), `date` (ISO date), `probe` (the probe's
+      name or tool number, as the calibration file gave), `units` ("mm").
+    - `inputs`: ``[{"file", "sha256"}]``; `source`: the probe_cal.json read (or None).
+    """
+
+    orders: tuple[int, ...]
+    coefficients: np.ndarray
+    cov: np.ndarray
+    dof: float = math.inf
+    residual_sd: float = math.nan
+    probing_error: float = math.nan
+    artefact: dict = field(default_factory=dict)
+    feed: float | None = None
+    date: str | None = None
+    probe: str | None = None
+    units: str = "mm"
+    inputs: tuple = ()
+    n_points: int = 0
+    source: str | None = None
+
+    def __post_init__(self):
+        names = coefficient_names(self.orders)
+        c = np.asarray(self.coefficients, dtype=float).reshape(-1)
+        cov = np.asarray(self.cov, dtype=float)
+        if c.size != len(names) or cov.shape != (c.size, c.size):
+            raise ValueError(
+                f"coefficients {c.size} and cov {cov.shape} do not fit orders {self.orders}"
+            )
+        object.__setattr__(self, "coefficients", c)
+        object.__setattr__(self, "cov", 0.5 * (cov + cov.T))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return coefficient_names(self.orders)
+
+    @property
+    def r0(self) -> float:
+        return float(self.coefficients[0])
+
+    def radius(self, theta) -> np.ndarray:
+        """r(theta) (mm) at approach angles `theta` (rad)."""
+        return lobe_basis(theta, self.orders) @ self.coefficients
+
+    def radius_u(self, theta) -> np.ndarray:
+        """The standard uncertainty of r(theta) (mm) from the coefficients' covariance."""
+        b = lobe_basis(theta, self.orders)
+        return np.sqrt(np.maximum(np.einsum("ni,ij,nj->n", b, self.cov, b), 0.0))
+
+    def components(self, theta) -> tuple[np.ndarray, np.ndarray]:
+        """The covariance as independent components: their standard deviations
+        ``(m,)`` and each one's effect on the radius at `theta` per unit
+        ``(n, m)``: ``cov(r(theta)) = E diag(sd^2) E^T`` exactly. Components with no
+        variance are left out."""
+        lam, vec = np.linalg.eigh(self.cov)
+        keep = lam > 1e-12 * max(float(lam.max()), 1e-300)
+        effects = lobe_basis(theta, self.orders) @ vec[:, keep]
+        return np.sqrt(lam[keep]), effects
+
+    def age_days(self, today: _dt.date | None = None) -> float | None:
+        """Days since the calibration's date (None when it has none)."""
+        if not self.date:
+            return None
+        today = today or _dt.date.today()
+        return float((today - _dt.date.fromisoformat(self.date[:10])).days)
+
+    def to_json(self) -> dict:
+        """The probe_cal.json object (`read_probe_calibration` reads it back)."""
+        sd = np.sqrt(np.maximum(np.diag(self.cov), 0.0))
+        names = self.names
+
+        def num(v):
+            return None if math.isnan(v) or math.isinf(v) else float(v)
+
+        return {
+            "format": CALIBRATION_FORMAT,
+            "units": self.units,
+            "probe": self.probe,
+            "date": self.date,
+            "feed_mm_per_min": self.feed,
+            "model": "r(theta) = r0 + sum_k a_k cos(k theta) + b_k sin(k theta); "
+            "theta = atan2(a_z, a_x) of the approach direction",
+            "orders": list(self.orders),
+            "coefficients": {n: float(v) for n, v in zip(names, self.coefficients, strict=True)},
+            "standard_uncertainty": {n: float(v) for n, v in zip(names, sd, strict=True)},
+            "covariance": self.cov.tolist(),
+            "dof": num(self.dof),
+            "residual_sd_mm": num(self.residual_sd),
+            "probing_error_mm": num(self.probing_error),
+            "n_points": int(self.n_points),
+            "artefact": dict(self.artefact),
+            "inputs": [dict(i) for i in self.inputs],
+        }  # fmt: skip
+
+    def to_json_text(self) -> str:
+        return json.dumps(self.to_json(), indent=2) + "\n"
+
+
+def _number(obj, key, where, *, positive=False, allow_none=False):
+    v = obj.get(key)
+    if v is None and allow_none:
+        return None
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise InputError(f"{where}: expected a finite number for {key!r}, got {v!r}", value=v)
+    if positive and v <= 0:
+        raise InputError(f"{where}: {key!r} must be positive, got {v!r}", value=v)
+    return float(v)
+
+
+def read_probe_calibration(path, *, units: str = "mm") -> ProbeCalibration:
+    """Read a probe_cal.json; refused when it is not one, holds another unit than
+    `units`, or its numbers do not fit together (named)."""
+    path = Path(path)
+    where = str(path)
+    try:
+        obj = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("probe calibration file not found", file=where) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"not a probe calibration (JSON): {exc}", file=where) from None
+    if not isinstance(obj, dict) or obj.get("format") != CALIBRATION_FORMAT:
+        got = obj.get("format") if isinstance(obj, dict) else type(obj).__name__
+        raise InputError(
+            f"not a probe calibration: format {got!r}, expected {CALIBRATION_FORMAT!r}",
+            file=where, value=got,
+        )  # fmt: skip
+    if obj.get("units") != units:
+        raise InputError(
+            f"the calibration is in {obj.get('units')!r}, the study in {units!r}: "
+            "calibrate in the study's units",
+            file=where, value=obj.get("units"),
+        )  # fmt: skip
+    orders = obj.get("orders")
+    if (
+        not isinstance(orders, list)
+        or any(k not in ALLOWED_ORDERS for k in orders)
+        or len(set(orders)) != len(orders)
+    ):
+        raise InputError(
+            f"orders must be distinct values of {list(ALLOWED_ORDERS)}, got {orders!r}",
+            file=where, value=orders,
+        )  # fmt: skip
+    orders = tuple(sorted(orders))
+    names = coefficient_names(orders)
+    coefs = obj.get("coefficients")
+    if not isinstance(coefs, dict) or set(coefs) != set(names):
+        raise InputError(
+            f"coefficients must be exactly {list(names)}, got "
+            f"{sorted(coefs) if isinstance(coefs, dict) else coefs!r}",
+            file=where,
+        )  # fmt: skip
+    c = np.array([_number(coefs, n, where) for n in names])
+    if c[0] <= 0:
+        raise InputError(f"r0 must be positive, got {c[0]!r}", file=where, value=c[0])
+    cov = np.asarray(obj.get("covariance"), dtype=float) if obj.get("covariance") else None
+    if cov is None or cov.shape != (len(names), len(names)) or not np.all(np.isfinite(cov)):
+        raise InputError(
+            f"covariance must be a finite {len(names)} x {len(names)} matrix", file=where
+        )
+    if not np.allclose(cov, cov.T, rtol=1e-9, atol=1e-30) or np.linalg.eigvalsh(
+        0.5 * (cov + cov.T)
+    ).min() < -1e-12 * max(float(np.abs(cov).max()), 1e-300):
+        raise InputError("covariance is not symmetric positive semi-definite", file=where)
+    dof = obj.get("dof")
+    dof = math.inf if dof is None else _number(obj, "dof", where, positive=True)
+    feed = _number(obj, "feed_mm_per_min", where, positive=True, allow_none=True)
+    date = obj.get("date")
+    if date is not None:
+        try:
+            _dt.date.fromisoformat(str(date)[:10])
+        except ValueError:
+            raise InputError(f"date {date!r} is not an ISO date", file=where, value=date) from None
+    res = obj.get("residual_sd_mm")
+    pe = obj.get("probing_error_mm")
+    return ProbeCalibration(
+        orders=orders, coefficients=c, cov=cov, dof=dof,
+        residual_sd=math.nan if res is None else _number(obj, "residual_sd_mm", where),
+        probing_error=math.nan if pe is None else _number(obj, "probing_error_mm", where),
+        artefact=dict(obj.get("artefact") or {}), feed=feed,
+        date=None if date is None else str(date), probe=obj.get("probe"), units=units,
+        inputs=tuple(obj.get("inputs") or ()), n_points=int(obj.get("n_points") or 0),
+        source=where,
+    )  # fmt: skip
