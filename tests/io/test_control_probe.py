@@ -148,8 +148,10 @@ def test_the_study_keys_are_checked(gauged):
     )  # fmt: skip
     with pytest.raises(InputError, match=r"machine\.z_offset: -312\.487 mm with probe_format"):
         load_study(tmp / "k3.toml")
-    # the plan of another study
-    other = _study(tmp, "k4.toml", "linuxcnc", "good.txt")
+    # the plan of another study (its own probe file: tests of this module may run
+    # on other workers)
+    _linuxcnc(tmp / "k4.txt", centres)
+    other = _study(tmp, "k4.toml", "linuxcnc", "k4.txt")
     body = (tmp / "plan.json").read_text().replace('"feature": "fillet"', '"feature": "round"')
     (tmp / "other.json").write_text(body)
     with pytest.raises(InputError, match="names feature.s. 'round'"):
