@@ -102,9 +102,12 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--pretravel",
-        type=T.finite_mm,
+        type=T.mm_or_file,
         default=None,
-        help="gauge: the trigger comes this much further along the move (mm; default 0)",
+        metavar="MM|PROBE_CAL",
+        help="gauge: the trigger comes this much further along the move (mm; default 0), or "
+        "a lobing probe: a probe_cal.json whose r(theta) the simulated probe has (its "
+        "pretravel is the study's ball radius minus r(theta) at each approach)",
     )
     p.add_argument(
         "--fanuc-x-mode",
@@ -220,7 +223,7 @@ def cmd_simulate(args, console) -> int:
 
 
 def _simulate_gauge(args, console) -> int:
-    from ..io import load_study
+    from ..io import load_study, read_probe_calibration
     from ..jobs import simulate_gauge
 
     for value, what in ((args.program, "PROGRAM"), (args.study, "--study STUDY"),
@@ -234,9 +237,14 @@ def _simulate_gauge(args, console) -> int:
     study = load_study(args.study)
     console.step(f"read {study!r}")
     rep = study.probe.repeatability if args.repeatability is None else args.repeatability
+    pretravel = args.pretravel
+    if isinstance(pretravel, Path):
+        from ..jobs import lobing_pretravel
+
+        pretravel = lobing_pretravel(read_probe_calibration(pretravel), study.probe.ball_radius)
     run = simulate_gauge(
         args.program, study, args.truth, repeatability=rep, seed=args.seed,
-        pretravel=args.pretravel, x_mode_fanuc=args.fanuc_x_mode,
+        pretravel=pretravel, x_mode_fanuc=args.fanuc_x_mode,
     )  # fmt: skip
     console.step(f"ran {run!r}")
     keep = [args.program, args.truth, study.path]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 __all__ = [
     "finite_mm",
@@ -46,6 +47,18 @@ def finite_mm(text: str) -> float:
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"expected a finite number (mm), got {text!r}")
     return v
+
+
+def mm_or_file(text: str):
+    """A finite length (mm), or else the path of an existing file."""
+    try:
+        return finite_mm(text)
+    except argparse.ArgumentTypeError:
+        if Path(text).is_file():
+            return Path(text)
+        raise argparse.ArgumentTypeError(
+            f"expected a length in mm or an existing file, got {text!r}"
+        ) from None
 
 
 def positive_float(text: str) -> float:

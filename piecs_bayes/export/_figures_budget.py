@@ -21,6 +21,7 @@ _SOURCE_COLOURS = {
     "scale_z": "#8172B3",
     "rotation": "#DA8BC3",
     "thermal": "#CCB974",
+    "probe calibration": "#64B5CD",
 }
 
 

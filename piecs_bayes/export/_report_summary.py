@@ -10,7 +10,7 @@ import numpy as np
 
 from ..fit import coverage_factor
 from ..geometry import drawn_scale
-from ._report_model import _Bullets, _f, _Para, _Pre, _Table, _Tables, css_class
+from ._report_model import _Bullets, _f, _Fig, _Para, _Pre, _Table, _Tables, css_class
 
 __all__ = ["summary_rows"]
 
@@ -272,6 +272,51 @@ def _inputs_section(res) -> list:
     ]
     if res.settings.get("command"):
         blocks.append(_Pre([str(res.settings["command"])], caption="This run's command line"))
+    blocks += _calibration_blocks(res.study.probe)
     if res.warnings:
         blocks.append(_Pre(list(res.warnings), caption="Warnings issued during the run"))
     return blocks
+
+
+def _calibration_blocks(probe) -> list:
+    """The probe calibration the fits used (`[probe] calibration`): its coefficients,
+    probing error, feed and age, and r(theta) as a polar plot."""
+    from ._figures_probe import probe_calibration_figure
+
+    cal = probe.calibration
+    if cal is None:
+        return []
+    sd = np.sqrt(np.maximum(np.diag(cal.cov), 0.0))
+    rows = [[n, f"{1e3 * v:+.2f}" if n != "r0" else f"{v:.5f} mm", f"{1e3 * u:.2f}"]
+            for n, v, u in zip(cal.names, cal.coefficients, sd, strict=True)]  # fmt: skip
+    age = cal.age_days()
+    facts = [
+        ["file", str(cal.source)],
+        ["probe", str(cal.probe or "–")],
+        ["date (age)", f"{cal.date} ({age:g} days)" if age is not None else "–"],
+        ["probing feed", f"{cal.feed:g} mm/min" if cal.feed else "–"],
+        ["probing error (range of r)", _f(cal.probing_error, ".2f") + " µm"],
+        ["residual sd", _f(cal.residual_sd, ".2f") + " µm"],
+        ["dof", "∞" if not np.isfinite(cal.dof) else f"{cal.dof:g}"],
+        ["artefact", ", ".join(f"{k} {v}" for k, v in cal.artefact.items()) or "–"],
+    ]
+    return [
+        _Tables(
+            [
+                _Table(
+                    ["coefficient", "value (µm)", "u (µm)"],
+                    rows,
+                    caption="Probe calibration: r(θ) = r0 + Σ a_k cos kθ + b_k sin kθ",
+                ),
+                _Table(["", ""], facts, caption="The calibration"),
+            ]
+        ),  # fmt: skip
+        _Fig(
+            "probe_calibration",
+            lambda: probe_calibration_figure(cal),
+            "The probe's effective radius by approach angle θ (from +X toward +Z), as "
+            "calibrated, about r0 (dashed), with its 95 % band. Every probe point was "
+            "corrected to r(θ) at its approach; the band's uncertainty is the budget's "
+            "'probe calibration'.",
+        ),  # fmt: skip
+    ]

@@ -29,8 +29,11 @@ from ._lsq_core import solve_arrays as solve_arrays
 from ._lsq_result import LsqResult as LsqResult
 from ._lsq_types import LsqArrays as LsqArrays
 from ._lsq_types import Status as Status
+from ._measurement import CALIBRATION_SOURCE as CALIBRATION_SOURCE
 from ._measurement import SOURCE_EFFECTS as SOURCE_EFFECTS
 from ._measurement import SOURCE_UNITS as SOURCE_UNITS
+from ._measurement import RadiusComponents as RadiusComponents
+from ._measurement import is_calibration_source as is_calibration_source
 from ._measurement import probe_residuals as probe_residuals
 from ._posterior import Posterior as Posterior
 from ._priors import HalfNormal as HalfNormal

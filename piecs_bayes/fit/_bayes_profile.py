@@ -36,7 +36,7 @@ from ..geometry import MachineTransform, Profile
 from ._batch_bayes import sample_posteriors
 from ._bayes import Posterior, gaussian_loglik, sample_posterior, student_t_loglik
 from ._inference_data import BayesData, inference_data, pointwise_over_draws, write_netcdf
-from ._measurement import SOURCE_EFFECTS, SOURCE_UNITS, probe_residuals
+from ._measurement import SOURCE_EFFECTS, is_calibration_source, probe_residuals, source_unit
 from ._moves import check_moves
 from ._posterior import frozen
 from ._priors import prior_from_spec
@@ -67,7 +67,8 @@ def _layout(profile: Profile, measured: tuple[str, ...], sources: dict) -> _Layo
         names += [f"{f.id}.{p}" for p in f.param_names]
         i += f.nparams
     nuis = []
-    for name in NUISANCE_SOURCES:
+    cal = sorted((n for n in sources if is_calibration_source(n)), key=lambda n: int(n[10:]))
+    for name in (*NUISANCE_SOURCES, *cal):
         if name in sources:
             nuis.append((name, i))
             names.append(name)
@@ -96,6 +97,7 @@ def profile_log_posterior(
     nu: float = 4.0,
     with_approach: bool = False,
     file: str | None = None,
+    radius=None,
 ):
     """Build ``(log_prob(theta, args), layout, priors)`` for a profile.
 
@@ -103,16 +105,17 @@ def profile_log_posterior(
     coordinates (radius X) in the order of ``feature_ids`` and, when
     ``with_approach``, the unit approach directions (else ``None``).
     ``sources`` maps source names to prior specs (the study's ``[uncertainty]``
-    tables). The function is cached per structure, so many parts of one study
-    share one compiled log posterior.
+    tables); a probe calibration's components (``probe_cal_<j>``, normal priors)
+    need its `radius` (`RadiusComponents`). The function is cached per structure,
+    so many parts of one study share one compiled log posterior.
     """
     m = _model(*_model_key(profile, feature_ids, sources, ball_radius, transform, sigma,
-                           likelihood, nu, with_approach, file))  # fmt: skip
+                           likelihood, nu, with_approach, file, radius))  # fmt: skip
     return m.log_prob, m.layout, m.priors
 
 
 def _model_key(profile, feature_ids, sources, ball_radius, transform, sigma, likelihood, nu,
-               with_approach, file) -> tuple:  # fmt: skip
+               with_approach, file, radius=None) -> tuple:  # fmt: skip
     """`_model`'s hashable arguments."""
     return (
         profile,
@@ -125,6 +128,7 @@ def _model_key(profile, feature_ids, sources, ball_radius, transform, sigma, lik
         float(nu),
         bool(with_approach),
         file,
+        radius,
     )
 
 
@@ -152,8 +156,16 @@ def _model(
     nu,
     with_approach,
     file,
+    radius=None,
 ) -> _Model:
     sources = {k: dict(v) for k, v in frozen_sources}
+    unknown = [
+        n for n in sources if is_calibration_source(n) and (radius is None or n not in radius.names)
+    ]
+    if unknown:
+        raise InputError(
+            f"source {unknown[0]!r} needs the probe calibration it belongs to", file=file
+        )
     if likelihood not in ("gaussian", "student_t"):
         raise InputError(
             f"unknown likelihood {likelihood!r}; expected 'gaussian' or 'student_t'",
@@ -187,6 +199,7 @@ def _model(
             transform=base,
             ball_radius=ball_radius,
             approach=appr if with_approach else None,
+            radius=radius,
         )
         return r, (theta[lay.sigma_index] if lay.sigma_index is not None else sigma)
 
@@ -230,7 +243,7 @@ class BayesProfileFit:
     def units(self) -> tuple[str, ...]:
         """The unit of each of `names`: mm, rad or 1 (a ratio; `fit.SOURCE_UNITS`)."""
         out = [u for f, _ in self.layout.features for u in f.param_units]
-        out += [SOURCE_UNITS[n] for n, _ in self.layout.nuisance]
+        out += [source_unit(n) for n, _ in self.layout.nuisance]
         return tuple(out + (["mm"] if self.layout.sigma_index is not None else []))
 
     def samples(self, feature_id: str) -> np.ndarray:
@@ -330,7 +343,7 @@ class BayesProfileFit:
         d = self._data()
         return _model(*_model_key(
             self.profile, d.feature_ids, d.sources, d.ball_radius, d.transform, d.sigma,
-            self.likelihood, d.nu, d.approach is not None, d.file,
+            self.likelihood, d.nu, d.approach is not None, d.file, d.radius,
         ))  # fmt: skip
 
     def __repr__(self) -> str:
@@ -365,6 +378,7 @@ def fit_profile_bayes(
     part: str | None = None,
     file: str | None = None,
     lines=None,
+    radius=None,
 ) -> BayesProfileFit:
     """Sample the posterior of a profile's deviations and nuisance parameters.
 
@@ -384,6 +398,8 @@ def fit_profile_bayes(
       differential-evolution moves by default (the nuisance parameters make the
       posterior correlated).
     - `lines`: the file line of each trigger (kept for the fit's `to_arviz()`).
+    - `radius`: the probe calibration's `RadiusComponents` when `sources` holds its
+      components (``probe_cal_<j>``, nuisance parameters with normal priors).
 
     **Returns:** a :class:`BayesProfileFit`.
     """
@@ -398,6 +414,7 @@ def fit_profile_bayes(
         nu=nu,
         with_approach=approach is not None,
         file=file,
+        radius=radius,
     )
     x0, _ = _start(lay, priors, start, start_cov, sigma)
     post = sample_posterior(
@@ -422,7 +439,7 @@ def fit_profile_bayes(
         lines=None if lines is None else frozen(np.asarray(lines)),
         sources={k: dict(v) for k, v in sources.items()}, ball_radius=float(ball_radius),
         transform=transform, sigma=float(sigma), nu=float(nu), file=file,
-        sampler=post.sampler, moves=check_moves(moves),
+        sampler=post.sampler, moves=check_moves(moves), radius=radius,
     )  # fmt: skip
     return BayesProfileFit(profile, post, lay, likelihood, part, data)
 
@@ -470,6 +487,7 @@ def fit_profiles_bayes(
     moves: str | None = "de",
     file: str | None = None,
     lines=None,
+    radius=None,
 ):
     """[`fit_profile_bayes`][] for many parts: parts with the same pattern of
     triggers (feature of each point, in order) share one compiled log posterior
@@ -500,7 +518,7 @@ def fit_profiles_bayes(
         log_prob, lay, priors = profile_log_posterior(
             profile, pattern, sources=sources, ball_radius=ball_radius, transform=transform,
             sigma=sigma, likelihood=likelihood, nu=nu, with_approach=approach is not None,
-            file=file,
+            file=file, radius=radius,
         )  # fmt: skip
         x0 = np.zeros((len(parts), len(lay.names)))
         for i, p in enumerate(parts):
@@ -525,6 +543,7 @@ def fit_profiles_bayes(
                 lines=None if lines is None else np.asarray(lines)[r], sources=dict(sources),
                 ball_radius=float(ball_radius), transform=transform, sigma=float(sigma),
                 nu=float(nu), file=file, sampler=post.sampler, moves=check_moves(moves),
+                radius=radius,
             )  # fmt: skip
             out[p] = BayesProfileFit(profile, post, lay, likelihood, p, data)
     return {p: out[p] for p in order}

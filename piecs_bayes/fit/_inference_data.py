@@ -92,6 +92,7 @@ class BayesData:
       `sigma` (mm; the known probe sigma unless `repeatability` is a source),
       `nu` (Student-t degrees of freedom), `file` (the study file, for messages).
     - `sampler`, `moves`: how the draws were made.
+    - `radius`: the probe calibration's `RadiusComponents` (None without one).
     """
 
     feature_ids: np.ndarray
@@ -106,6 +107,7 @@ class BayesData:
     file: str | None
     sampler: str
     moves: str
+    radius: object = None
 
 
 def parameter_locations(layout, units) -> list[tuple[str, str, str | None, str | None, int, str]]:

@@ -1,4 +1,4 @@
-"""The probing measurement model shared by the Bayesian fit and GUM propagation.
+r"""The probing measurement model shared by the Bayesian fit and GUM propagation.
 
 A trigger's residual is the signed distance of its ball centre, moved to the
 part frame by the machine transform with the error sources applied, from the
@@ -10,15 +10,34 @@ deviated feature, minus the (corrected) ball radius. The sources:
 | ``thermal`` | a common expansion error, added to both axis scales |
 | ``ball_radius`` | added to the calibrated ball radius |
 | ``pretravel`` | the trigger comes late along the approach direction (into the material) |
+| ``probe_cal_1``, ... | a probe calibration's components: the radius at the approach angle |
+
+A calibrated probe (`io.ProbeCalibration`) has an effective radius $r(\theta)$ by
+approach angle; its points are corrected to $r_0$ when they are read, and the
+calibration's covariance enters here as `RadiusComponents`: independent unit
+components $z_j$, each moving the radius at $\theta$ by $z_j\,e_j(\theta)$, with
+$e_j = B(\theta) v_j$ ($B$ the Fourier basis, $v_j$ an eigenvector of the
+covariance), correlated over every point through the coefficients.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import jax.numpy as jnp
+import numpy as np
 
 from ..geometry import machine_to_part
 
-__all__ = ["SOURCE_EFFECTS", "SOURCE_UNITS", "probe_residuals"]
+__all__ = [
+    "CALIBRATION_SOURCE",
+    "RadiusComponents",
+    "SOURCE_EFFECTS",
+    "SOURCE_UNITS",
+    "is_calibration_source",
+    "probe_residuals",
+    "source_unit",
+]
 
 #: Sources that act in the measurement model (``repeatability`` is the noise itself).
 SOURCE_EFFECTS = (
@@ -44,10 +63,71 @@ SOURCE_UNITS = {
     "thermal": "1",
     "repeatability": "mm",
 }
+#: The name of the probe calibration in budgets; its components are ``probe_cal_<j>``.
+CALIBRATION_SOURCE = "probe calibration"
+_CAL_PREFIX = "probe_cal_"
+
+
+@dataclass(frozen=True)
+class RadiusComponents:
+    """A probe calibration's covariance as independent components of the radius.
+
+    `orders`: the Fourier orders of r(theta); `vectors`: ``(p, m)`` as nested tuples,
+    column j the coefficients moved by one unit of component j; `sds`: each
+    component's standard deviation (mm). Hashable: compiled models are cached by it.
+    """
+
+    orders: tuple[int, ...]
+    vectors: tuple[tuple[float, ...], ...]
+    sds: tuple[float, ...]
+
+    @classmethod
+    def from_calibration(cls, cal) -> RadiusComponents:
+        """From an `io.ProbeCalibration` (its covariance's eigen-decomposition)."""
+        lam, vec = np.linalg.eigh(np.asarray(cal.cov, dtype=float))
+        keep = lam > 1e-12 * max(float(lam.max()), 1e-300)
+        v = vec[:, keep]
+        return cls(
+            tuple(int(k) for k in cal.orders),
+            tuple(tuple(float(x) for x in row) for row in v),
+            tuple(float(x) for x in np.sqrt(lam[keep])),
+        )
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The component sources, ``probe_cal_1`` ... (one per `sds`)."""
+        return tuple(f"{_CAL_PREFIX}{j + 1}" for j in range(len(self.sds)))
+
+    @property
+    def source_sd(self) -> dict[str, float]:
+        return dict(zip(self.names, self.sds, strict=True))
+
+    def effects(self, approach):
+        """``(n, m)``: each component's effect on the radius per unit at the unit
+        approach directions `approach` ``(n, 2)`` (traceable)."""
+        theta = jnp.arctan2(approach[:, 1], approach[:, 0])
+        cols = [jnp.ones_like(theta)]
+        for k in self.orders:
+            cols += [jnp.cos(k * theta), jnp.sin(k * theta)]
+        return jnp.stack(cols, axis=1) @ jnp.asarray(self.vectors)
+
+
+def is_calibration_source(name: str) -> bool:
+    """Whether `name` is one of a probe calibration's components."""
+    return name.startswith(_CAL_PREFIX) and name[len(_CAL_PREFIX) :].isdigit()
+
+
+def source_unit(name: str) -> str:
+    """The unit of a source's value (`SOURCE_UNITS`; a calibration component: mm)."""
+    return "mm" if is_calibration_source(name) else SOURCE_UNITS[name]
+
+
 _TRANSFORM_INDEX = {"x_centre": 0, "z_offset": 1, "scale_x": 2, "scale_z": 3, "rotation": 4}
 
 
-def probe_residuals(groups, devs, points, deltas, *, transform, ball_radius, approach=None):
+def probe_residuals(
+    groups, devs, points, deltas, *, transform, ball_radius, approach=None, radius=None
+):
     """Residuals of every trigger, feature by feature.
 
     **Arguments:**
@@ -58,7 +138,9 @@ def probe_residuals(groups, devs, points, deltas, *, transform, ball_radius, app
     - `deltas`: ``{source: value}`` for sources in ``SOURCE_EFFECTS`` (traced values).
     - `transform`: the study's transform as its 5-vector.
     - `approach`: ``(n, 2)`` unit approach directions, or None (the pretravel
-      then acts against the outward normal).
+      and the calibration then act against the outward normal).
+    - `radius`: the probe calibration's `RadiusComponents` when `deltas` holds
+      its components (``probe_cal_<j>``).
 
     **Returns:** the residuals, concatenated in `groups` order.
     """
@@ -69,12 +151,22 @@ def probe_residuals(groups, devs, points, deltas, *, transform, ball_radius, app
         elif name == "thermal":
             t = t.at[2].add(v).at[3].add(v)
     rb = ball_radius + deltas.get("ball_radius", 0.0)
+    cal = (
+        []
+        if radius is None
+        else [(j, deltas[n]) for j, n in enumerate(radius.names) if n in deltas]
+    )
     part = machine_to_part(points, t)
     out = []
     for (f, idx), d in zip(groups, devs, strict=True):
         q = part[idx]
-        if "pretravel" in deltas:
+        if "pretravel" in deltas or cal:
             a = approach[idx] if approach is not None else -f.outward_normal(q, d)
+        if "pretravel" in deltas:
             q = q - deltas["pretravel"] * a
-        out.append(f.signed_distance(q, d) - rb)
+        r = rb
+        if cal:
+            e = radius.effects(a)
+            r = rb + sum(e[:, j] * v for j, v in cal)
+        out.append(f.signed_distance(q, d) - r)
     return jnp.concatenate(out)

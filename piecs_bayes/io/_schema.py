@@ -29,7 +29,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     ),
     "probe": (
         "ball_radius", "ball_radius_u", "repeatability", "repeatability_dof", "x_mode",
-        "pretravel", "tool", "feed",
+        "pretravel", "tool", "feed", "calibration", "calibration_max_age_days",
     ),
     "machine": ("x_centre", "z_offset", "scale_x", "scale_z", "rotation"),
     "uncertainty": (),  # source names: checked with the sources

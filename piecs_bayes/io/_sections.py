@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import glob
 import math
+import re
+from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -242,8 +244,49 @@ def _probe_tool(r: Reader, pr: dict) -> int | None:
     return t
 
 
-def read_probe(r: Reader, tree: dict, scale: float, profile: Profile) -> ProbeSpec:
-    """`[probe]`; a concave arc the ball cannot touch is an error."""
+def _probe_calibration(r: Reader, pr: dict, base: Path, ball_radius: float, tool, u: float):
+    """`[probe] calibration`: the probe_cal.json (relative to the study), or None.
+    Refused: a calibration whose r0 is another ball's (more than 0.05 mm from the
+    declared `ball_radius`), of another tool than `[probe] tool`, or beside a
+    declared `ball_radius_u` (the calibration carries the radius's uncertainty)."""
+    from ._probe_cal import read_probe_calibration
+
+    name = pr.get("calibration")
+    if name is None:
+        return None
+    if not isinstance(name, str) or not name.strip():
+        raise r.error("probe.calibration", f"expected a file name, got {name!r}", value=name)
+    cal = read_probe_calibration(base / name)
+    if u > 0:
+        raise r.error(
+            "probe.ball_radius_u",
+            f"{u:g} mm beside a calibration ({name}): the calibration's covariance is the "
+            "radius's uncertainty; remove ball_radius_u",
+            value=u,
+        )
+    if abs(cal.r0 - ball_radius) > 0.05:
+        raise r.error(
+            "probe.calibration",
+            f"{name} gives r0 = {cal.r0:.4f} mm for a declared ball_radius of {ball_radius:g} mm: "
+            "the calibration of another probe or stylus",
+            value=cal.r0,
+        )
+    m = re.fullmatch(r"\s*T?0*(\d+)\b.*", str(cal.probe or ""), flags=re.IGNORECASE)
+    if tool is not None and m and int(m.group(1)) != tool:
+        raise r.error(
+            "probe.calibration",
+            f"{name} calibrates probe {cal.probe!r}, the study's probe is tool {tool}: the "
+            "calibration of another probe",
+            value=cal.probe,
+        )
+    return cal
+
+
+def read_probe(
+    r: Reader, tree: dict, scale: float, profile: Profile, base: Path = Path(".")
+) -> ProbeSpec:
+    """`[probe]`; a concave arc the ball cannot touch is an error. With
+    `calibration`, the calibrated r0 is the ball radius (`_probe_calibration`)."""
     pr = r.table(tree, "probe", "", required=True)
     probe = ProbeSpec(
         ball_radius=r.number(pr, "ball_radius", "probe.", positive=True) * scale,
@@ -254,7 +297,13 @@ def read_probe(r: Reader, tree: dict, scale: float, profile: Profile) -> ProbeSp
         repeatability_dof=r.number(pr, "repeatability_dof", "probe.", 8.0, nonneg=True),
         tool=_probe_tool(r, pr),
         feed=r.number(pr, "feed", "probe.", positive=True) * scale if "feed" in pr else None,
+        calibration_max_age_days=r.number(
+            pr, "calibration_max_age_days", "probe.", 30.0, positive=True
+        ),
     )
+    cal = _probe_calibration(r, pr, base, probe.ball_radius, probe.tool, probe.ball_radius_u)
+    if cal is not None:
+        probe = replace(probe, ball_radius=cal.r0, calibration=cal)
     for f in profile.features:
         if f.kind == "arc" and not f.convex and f.radius <= probe.ball_radius:
             raise InputError(

@@ -11,6 +11,7 @@ from pathlib import Path
 from types import MappingProxyType
 
 from ..geometry import MachineTransform, Profile
+from ._probe_cal import ProbeCalibration
 
 __all__ = [
     "APPLY_ROUTES",
@@ -34,7 +35,10 @@ class ProbeSpec:
     degrees of freedom the declared repeatability is worth as a prior for the
     pooled residual sigma (``repeatability_dof``; 0: no prior; see docs/uncertainty.md).
     For the gauging program: the probe's ``tool`` number and its probing ``feed``
-    (mm/min: a calibration holds only at the feed it was made at); None: not given."""
+    (mm/min: a calibration holds only at the feed it was made at); None: not given.
+    ``calibration``: the probe's `ProbeCalibration` (``[probe] calibration``, a
+    probe_cal.json), whose r0 is then ``ball_radius``; a calibration older than
+    ``calibration_max_age_days`` is a warning in the outputs."""
 
     ball_radius: float
     ball_radius_u: float = 0.0
@@ -44,6 +48,8 @@ class ProbeSpec:
     repeatability_dof: float = 8.0
     tool: int | None = None
     feed: float | None = None
+    calibration: ProbeCalibration | None = None
+    calibration_max_age_days: float = 30.0
 
 
 @dataclass(frozen=True)

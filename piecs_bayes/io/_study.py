@@ -94,9 +94,15 @@ def load_study(path) -> Study:
     scale = _MM_PER[units]
 
     profile = read_profile(r, tree, scale)
-    probe = read_probe(r, tree, scale, profile)
+    probe = read_probe(r, tree, scale, profile, path.parent)
     transform = read_machine(r, tree, scale)
     sources = read_sources(r, r.table(tree, "uncertainty", ""), scale)
+    if probe.calibration is not None and "ball_radius" in sources:
+        raise r.error(
+            "uncertainty.ball_radius",
+            "a source beside [probe] calibration: the calibration's covariance is the "
+            "radius's uncertainty (the budget's 'probe calibration'); remove it",
+        )
     fit = read_fit(r, tree, scale, profile)
     comp = read_compensation(r, tree, scale)
     probe_files, program = read_files(r, study, path.parent)

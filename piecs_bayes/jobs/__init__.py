@@ -29,6 +29,10 @@ from ._batch import capability_job as capability_job
 from ._batch import capability_values as capability_values
 from ._batch import fit_study_batch as fit_study_batch
 from ._batch import path_uncertainty_batch as path_uncertainty_batch
+from ._calibrated import approach_directions as approach_directions
+from ._calibrated import calibrated_points as calibrated_points
+from ._calibrated import lobing_pretravel as lobing_pretravel
+from ._calibrated import radius_components as radius_components
 from ._calibration import CoverageResult as CoverageResult
 from ._calibration import coverage_check as coverage_check
 from ._capability import CapabilityStudy as CapabilityStudy

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..geometry import MachineTransform, Profile
 from ..uncertainty import linearised_toolpath, monte_carlo_toolpath, path_function, path_grid
+from ._calibrated import calibrated_points, radius_components
 
 __all__ = ["CoverageResult", "coverage_check"]
 
@@ -102,6 +103,8 @@ def coverage_check(
     band_sims: int = 2**15,
     bayes_chunk: int = 100,
     seed: int = 0,
+    probe=None,
+    calibrated: bool = False,
 ) -> CoverageResult:
     """Simulate `n_parts`, fit and propagate them at the given settings, count coverage.
 
@@ -121,6 +124,12 @@ def coverage_check(
       whole chains, parts x walkers x steps x parameters x 8 bytes, until it thins).
     - `band_sims`: quasi-random draws for each linearised band's critical value
       (2^15 scrambled Sobol points: its standard error ~0.005, ~0.1 % of coverage).
+    - `probe`: a lobing probe (`io.ProbeCalibration`, its r(theta) the truth) that
+      records every part. With `calibrated`, the parts are fitted with `probe` as
+      their calibration (points corrected to r0, its covariance a source) and each
+      part's real probe differs from it by a draw of that covariance (so that the
+      count includes the calibration's own error); without, they are fitted with
+      one radius, `ball_radius`, as if nobody had calibrated.
 
     **Returns:** a [`CoverageResult`][].
     """
@@ -130,8 +139,17 @@ def coverage_check(
     source_sd = dict(source_sd or {})
     sim = simulate_parts(
         profile, truth, n_parts, ball_radius=ball_radius, transform=transform, points=points,
-        noise_sd=noise_sd, source_sd=source_sd, rng=seed, margin=margin,
+        noise_sd=noise_sd, source_sd=source_sd, rng=seed, margin=margin, probe=probe,
+        probe_error=calibrated,
     )  # fmt: skip
+    radius = None
+    if probe is not None and calibrated:
+        radius = radius_components(probe)
+        sim = {**sim, "points": calibrated_points(
+            profile, sim["feature"], sim["points"], transform, probe
+        )}  # fmt: skip
+        ball_radius = probe.r0
+    prop_sd = {**source_sd, **(radius.source_sd if radius else {})}
     bf = fit_profiles(
         profile, sim["part"], sim["feature"], to_part_frame(transform, sim["points"]),
         ball_radius=ball_radius, method=method, loss=loss,
@@ -154,22 +172,23 @@ def coverage_check(
             profile, sim["feature"][rows], sim["points"][rows],
             {fid: v[i] for fid, v in values.items()}, ball_radius=ball_radius, inlier=k,
             sigma=float(bf.sigma[i]), dof=float(bf.sigma_dof[i]), transform=transform,
-            source_sd=source_sd, grid=grid, p=p, band_sims=band_sims,
-            loss=loss if method == "robust" else "linear",
+            source_sd=prop_sd, grid=grid, p=p, band_sims=band_sims,
+            loss=loss if method == "robust" else "linear", radius=radius,
         )  # fmt: skip
         routes["linearised"].append(_hits(u, truth_dev, true_v, true_o, fixed))
     if bayes:
         routes["monte_carlo"] = _monte_carlo_hits(
             profile, sim, bf, keep, values, truth_dev, true_v, true_o, fixed, grid,
-            source_sd=source_sd, known_sigma=known_sigma, declared_dof=declared_dof,
+            source_sd=prop_sd, known_sigma=known_sigma, declared_dof=declared_dof,
             noise_sd=noise_sd, ball_radius=ball_radius, transform=transform, p=p,
             bayes_steps=bayes_steps, bayes_walkers=bayes_walkers, bayes_chunk=bayes_chunk,
-            seed=seed,
+            seed=seed, radius=radius,
         )  # fmt: skip
     rates, per_feature = _rates(routes, feats)
     settings = {
         "known_sigma": known_sigma, "repeatability_dof": declared_dof, "method": method,
         "loss": loss, "points": points, "noise_sd": noise_sd, "sources": source_sd,
+        "probe": None if probe is None else ("calibrated" if calibrated else "uncalibrated"),
     }  # fmt: skip
     dofs = np.asarray(bf.sigma_dof)
     return CoverageResult(
@@ -196,7 +215,7 @@ def _rates(routes: dict, feats) -> tuple[dict, dict]:
 def _monte_carlo_hits(
     profile, sim, bf, keep, values, truth_dev, true_v, true_o, fixed, grid, *, source_sd,
     known_sigma, declared_dof, noise_sd, ball_radius, transform, p, bayes_steps, bayes_walkers,
-    bayes_chunk, seed,
+    bayes_chunk, seed, radius=None,
 ) -> list:  # fmt: skip
     """Every part's posterior (lockstep ensembles, one per part; the probe sigma
     estimated with the declared prior unless known) and the hits of its Monte Carlo
@@ -222,6 +241,7 @@ def _monte_carlo_hits(
                 starts=starts, sources=sources, ball_radius=ball_radius,
                 transform=transform, sigma=noise_sd, nsteps=bayes_steps, n_ensembles=1,
                 nwalkers=bayes_walkers, progress=False, on_fail="ignore", seed=seed + 1 + lo,
+                radius=radius,
             )  # fmt: skip
         for post in posts.values():
             u = monte_carlo_toolpath(profile, post.deviation_samples, grid=grid, p=p)

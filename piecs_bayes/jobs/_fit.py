@@ -7,6 +7,7 @@ The probe data are read once (`load_probe_data`) and passed down.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -23,7 +24,8 @@ from ..io import (
     read_plan_points,
     read_probe_csv,
 )
-from ._options import bayes_options, fit_options, robust_scale
+from ._calibrated import calibrated_points, radius_components
+from ._options import bayes_options, calibration_sds, fit_options, robust_scale
 
 if TYPE_CHECKING:  # compensate pulls in scipy (~0.6 s): imported where it is used
     from ..compensate import AdjustedPath
@@ -48,7 +50,9 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
     as part id unless the file has a ``part`` column. A file listed twice (or two
     files with identical contents) is refused; every file's points pass the
     plausibility checks (`io.check_probe_data`: distance from the nominal feature,
-    position along it, repeated triggers) before anything is fitted.
+    position along it, repeated triggers) before anything is fitted. With a probe
+    calibration (`[probe] calibration`) the points are then corrected to its r0
+    (`calibrated_points`: each along its approach by r(theta) - r0).
     """
     files = list(files) if files is not None else list(study.probe_files)
     if not files:
@@ -69,6 +73,17 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
         )
         for f in files
     ]
+    cal = study.probe.calibration
+    if cal is not None:
+        datas = [
+            replace(
+                d,
+                points=calibrated_points(
+                    study.profile, d.feature, d.points, study.transform, cal, d.approach
+                ),
+            )  # fmt: skip
+            for d in datas
+        ]
     if len(datas) == 1:
         return datas[0]
 
@@ -311,6 +326,8 @@ def toolpath_uncertainty(
     for name, spec in study.sources.items():
         if name in LINEARISED_SOURCES:
             source_sd[name] = prior_from_spec(name, dict(spec), file=str(study.path)).sd
+    radius = radius_components(study.probe.calibration)
+    source_sd.update(calibration_sds(study))
     lin = linearised_toolpath(
         study.profile,
         data.feature,
@@ -322,8 +339,9 @@ def toolpath_uncertainty(
         loss=_fit_loss(fit),
         transform=study.transform,
         source_sd=source_sd,
-        approach=data.approach if "pretravel" in source_sd else None,
+        approach=data.approach if "pretravel" in source_sd or radius else None,
         gain=gain,
+        radius=radius,
     )
     mc = None
     if bayes is not None:

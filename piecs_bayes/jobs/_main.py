@@ -51,6 +51,7 @@ from ..gcode import GAUGING_NAMES
 from ..io import load_study
 from ..uncertainty import normal_deviation_draws
 from ._apply import apply_route
+from ._calibrated import calibration_warnings
 from ._capability import capability_study
 from ._decide import decide_study
 from ._fit import (
@@ -203,6 +204,9 @@ def _read(study, say: _Progress) -> _Run:
         study = load_study(study)
     probe = load_probe_data(study)
     run = _Run(study=study, probe=probe, say=say, t0=t0)
+    for msg in calibration_warnings(study.probe):  # in the outputs and the report
+        warnings.warn(msg, stacklevel=2)
+        run.caught.append(msg)
     run.timings["read"] = time.perf_counter() - t0
     say(f"read {study!r}: {len(probe)} probe points, {len(probe.parts)} part(s)")
     return run
@@ -421,6 +425,9 @@ def _inputs(study, tool_table, capability_files) -> tuple:
         inputs += [hash_file("gauging program", g) for g in gauging if g.is_file()]
     if tool_table is not None and not hasattr(tool_table, "get"):
         inputs.append(hash_file("tool_table", tool_table))
+    cal = study.probe.calibration
+    if cal is not None and cal.source is not None:
+        inputs.append(hash_file("probe calibration", cal.source))
     return tuple(inputs)
 
 

@@ -9,12 +9,14 @@ from __future__ import annotations
 
 from ..compensate import DecisionSettings, OffsetSettings, settings_from_spec
 from ..errors import InputError
-from ..fit import TUNING, prior_from_spec
+from ..fit import CALIBRATION_SOURCE, TUNING, prior_from_spec
 from ..io import Study, parse_fix
+from ._calibrated import radius_components
 
 __all__ = [
     "bayes_options",
     "bayes_sources",
+    "calibration_sds",
     "decision_settings",
     "fit_options",
     "offset_settings",
@@ -70,7 +72,16 @@ def bayes_sources(study: Study) -> dict:
         }
     if study.fit.known_sigma:
         sources.pop("repeatability", None)
+    for name, sd in calibration_sds(study).items():
+        sources[name] = {"dist": "normal", "mean": 0.0, "sd": sd}
     return sources
+
+
+def calibration_sds(study: Study) -> dict[str, float]:
+    """The probe calibration's independent components and their standard deviations
+    (``probe_cal_<j>``: `fit.RadiusComponents`); empty without a calibration."""
+    radius = radius_components(study.probe.calibration)
+    return {} if radius is None else radius.source_sd
 
 
 def bayes_options(
@@ -80,6 +91,7 @@ def bayes_options(
     come from the study (and the caller's overrides)."""
     return {
         "sources": bayes_sources(study),
+        "radius": radius_components(study.probe.calibration),
         "ball_radius": study.probe.ball_radius,
         "transform": study.transform,
         "sigma": study.probe.repeatability,
@@ -95,8 +107,10 @@ def bayes_options(
     }
 
 
-def source_sds(study: Study) -> dict[str, float]:
-    """Standard deviations of the study's systematic sources (mm or 1 or rad)."""
+def source_sds(study: Study) -> dict:
+    """Standard deviations of the study's systematic sources (mm or 1 or rad), as
+    `uncertainty.u_systematic` takes them; a probe calibration as its
+    `fit.RadiusComponents` under ``"probe calibration"``."""
     out = {}
     for name, spec in study.sources.items():
         if name in ("repeatability", "thermal"):
@@ -104,6 +118,9 @@ def source_sds(study: Study) -> dict[str, float]:
         out[name] = float(prior_from_spec(name, dict(spec), file=str(study.path)).sd)
     if "ball_radius" not in out and study.probe.ball_radius_u > 0:
         out["ball_radius"] = float(study.probe.ball_radius_u)
+    radius = radius_components(study.probe.calibration)
+    if radius is not None:
+        out[CALIBRATION_SOURCE] = radius
     return out
 
 

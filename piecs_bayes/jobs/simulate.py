@@ -34,6 +34,7 @@ from ..geometry import (
     part_to_machine,
     profile_side,
 )
+from ..io import lobe_basis
 from ._sim_files import probe_csv_text, study_toml_text
 
 __all__ = ["ProcessErrors", "demo_profile", "process_deviations", "simulate_probe",
@@ -205,6 +206,8 @@ def simulate_parts(
     source_sd: dict[str, float] | None = None,
     rng: np.random.Generator | int = 0,
     margin: float = 0.1,
+    probe=None,
+    probe_error: bool = False,
 ) -> dict:
     """`n_parts` probed parts at once (vectorised `simulate_probe`), each with its own
     probe noise and its own draw of the machine error sources.
@@ -217,6 +220,12 @@ def simulate_parts(
     - `source_sd`: standard deviations of normal per-part errors of the sources in
       `SIMULATED_SOURCES` (the ball radius is off by `d`, the real transform is
       `transform` plus the drawn errors); the fits should use the nominal values.
+    - `probe`: a lobing probe (`io.ProbeCalibration`: the true r(theta)); each
+      centre is recorded r(theta) from the surface at its approach angle (the
+      inward normal) instead of `ball_radius`. With `probe_error`, each part's probe
+      differs from it by a draw of its covariance (what a part fitted with that
+      calibration sees of the calibration's own error; in `errors` as
+      ``"probe_coefficients"`` ``(n_parts, p)``).
     - the rest as `simulate_probe`.
 
     **Returns:** `dict(part (str ids), feature, points (machine, radius X), errors
@@ -232,6 +241,11 @@ def simulate_parts(
             raise ValueError(f"cannot simulate source {name!r}; expected {SIMULATED_SOURCES}")
     errors = {n: rng.normal(0.0, sd, n_parts) for n, sd in source_sd.items()}
     rb = ball_radius + errors.get("ball_radius", np.zeros(n_parts))
+    if probe is not None:
+        coef = np.tile(probe.coefficients, (n_parts, 1))
+        if probe_error:
+            coef = coef + rng.multivariate_normal(np.zeros(coef.shape[1]), probe.cov, n_parts)
+            errors["probe_coefficients"] = coef - probe.coefficients
     cents, feats = [], []
     for f in profile.features:
         t = _fractions(points, f.id, margin)
@@ -247,7 +261,11 @@ def simulate_parts(
             return q, f.outward_normal(q, d)
 
         q, nrm = map(np.asarray, jax.jit(jax.vmap(surface))(jnp.asarray(dev)))
-        cents.append(q + rb[:, None, None] * nrm + rng.normal(0.0, noise_sd, size=q.shape))
+        r = np.broadcast_to(rb[:, None], q.shape[:2])
+        if probe is not None:  # the radius at each approach angle (the inward normal)
+            basis = lobe_basis(np.arctan2(-nrm[..., 1], -nrm[..., 0]).ravel(), probe.orders)
+            r = r - ball_radius + np.einsum("pkj,pj->pk", basis.reshape(*q.shape[:2], -1), coef)
+        cents.append(q + r[..., None] * nrm + rng.normal(0.0, noise_sd, size=q.shape))
         feats += [f.id] * k
     part_pts = np.concatenate(cents, axis=1)  # (P, n, 2), part frame
     base = np.asarray(transform.as_array())

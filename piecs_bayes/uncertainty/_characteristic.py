@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import AnalysisError, InputError
-from ..fit import arc_distance, effective_dof, geometry_args, line_distance
+from ..fit import CALIBRATION_SOURCE, arc_distance, effective_dof, geometry_args, line_distance
 from ..geometry import Line, drawn_scale
 
 __all__ = [
@@ -135,7 +135,10 @@ def normal_deviation_draws(feature, draws, t: float) -> np.ndarray:
 
 
 def u_systematic(feature, ts, sds: Mapping[str, float]) -> np.ndarray:
-    """$u_\\text{sys}$ of $\\delta$ at the nominal points `ts` (see the module docstring)."""
+    """$u_\\text{sys}$ of $\\delta$ at the nominal points `ts` (see the module docstring).
+    A probe calibration is the entry ``"probe calibration"``, its
+    `fit.RadiusComponents`: the radius's uncertainty at each point's approach (the
+    inward normal), its components' variances summed there."""
     ts = np.atleast_1d(np.asarray(ts, dtype=float))
     if not sds:
         return np.zeros(ts.size)
@@ -151,6 +154,10 @@ def u_systematic(feature, ts, sds: Mapping[str, float]) -> np.ndarray:
         "rotation": nx * z - nz * x,
     }
     var = sum((sens[k] * sd) ** 2 for k, sd in sds.items() if k in sens)
+    radius = sds.get(CALIBRATION_SOURCE)
+    if radius is not None:
+        e = np.asarray(radius.effects(jnp.asarray(-n)))
+        var = var + np.sum((e * np.asarray(radius.sds)) ** 2, axis=1)
     return np.sqrt(np.asarray(var, dtype=float) + np.zeros(ts.size))
 
 

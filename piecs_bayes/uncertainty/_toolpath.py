@@ -26,9 +26,11 @@ import numpy as np
 from ..compensate import adjusted_geometry
 from ..errors import InputError
 from ..fit import (
+    CALIBRATION_SOURCE,
     SOURCE_EFFECTS,
     coverage_factor,
     effective_dof,
+    is_calibration_source,
     normal_variance_factor,
     probe_residuals,
 )
@@ -278,6 +280,7 @@ def _residual_jacobians(
     ball_radius: float,
     transform: MachineTransform,
     with_approach: bool,
+    radius=None,
 ):
     """Jitted Jacobians of all residuals with respect to the deviations and to the
     inputs (points, then source deltas), cached per point pattern so that many
@@ -301,6 +304,7 @@ def _residual_jacobians(
             transform=base,
             ball_radius=ball_radius,
             approach=appr if with_approach else None,
+            radius=radius,
         )
 
     return jax.jit(
@@ -329,6 +333,7 @@ def linearised_toolpath(
     band_sims: int = 100_000,
     loss: str = "linear",
     inlier=None,
+    radius=None,
 ) -> ToolpathUncertainty:
     """GUM propagation from probe points and error sources to the adjusted path.
 
@@ -348,7 +353,12 @@ def linearised_toolpath(
       (``ProfileFit.sigma``; ``inf`` when known): intervals and bands use
       Student-t quantiles with Welch-Satterthwaite effective dof.
     - `source_sd`: standard uncertainty of each other source (names in
-      ``LINEARISED_SOURCES``), e.g. the sd of the study's priors.
+      ``LINEARISED_SOURCES``, or a probe calibration's components), e.g. the sd
+      of the study's priors.
+    - `radius`: a probe calibration's `fit.RadiusComponents` (its components in
+      `source_sd`, from `RadiusComponents.source_sd`): one systematic source,
+      correlated over the points through the coefficients; the budget shows it as
+      one line, ``"probe calibration"``.
     - `gain`: compensation gain(s); `grid`: where the offset is evaluated.
     - `band_sims`: quasi-random draws for the simultaneous band's critical value.
     - `loss`: the fit's loss. A robust (M-)estimator is less efficient than least
@@ -364,6 +374,8 @@ def linearised_toolpath(
     """
     source_sd = dict(source_sd or {})
     for name in source_sd:
+        if is_calibration_source(name) and radius is not None and name in radius.names:
+            continue
         if name not in LINEARISED_SOURCES:
             raise InputError(
                 f"unknown uncertainty source {name!r}; "
@@ -378,7 +390,7 @@ def linearised_toolpath(
         [jnp.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float) for f in feats]
     )
     d_dx = _deviation_sensitivities(
-        profile, feature_ids, pts, names, dev0, ball_radius, transform, approach, inlier
+        profile, feature_ids, pts, names, dev0, ball_radius, transform, approach, inlier, radius
     )
     y_path, j_path = map(np.asarray, _path_jacobian(profile, grid, _gain_key(gain))(dev0))
     jac = np.vstack([d_dx, j_path @ d_dx])
@@ -392,7 +404,9 @@ def linearised_toolpath(
     sl_dev, sl_v, sl_o = slice(0, n_dev), slice(n_dev, n_dev + n_v), slice(n_dev + n_v, None)
     sources = {"repeatability": (np.arange(n_pts), np.full(n_pts, var_rep))}
     for k, name in enumerate(names):
-        sources[name] = (np.array([n_pts + k]), np.array([source_sd[name] ** 2]))
+        key = CALIBRATION_SOURCE if is_calibration_source(name) else name
+        idx, var = sources.get(key, (np.zeros(0, dtype=int), np.zeros(0)))
+        sources[key] = (np.append(idx, n_pts + k), np.append(var, source_sd[name] ** 2))
     budget = uncertainty_budget(jac, sources)
     vertices = y[sl_v].reshape(-1, 2)
     cv = cov_y[sl_v, sl_v]
@@ -427,8 +441,9 @@ def linearised_toolpath(
 
 
 def _deviation_sensitivities(
-    profile, feature_ids, pts, names, dev0, ball_radius, transform, approach, inlier=None
-) -> np.ndarray:
+    profile, feature_ids, pts, names, dev0, ball_radius, transform, approach, inlier=None,
+    radius=None,
+) -> np.ndarray:  # fmt: skip
     """d(deviations)/d(inputs) at the solution by the implicit function theorem:
     $-(J_d^T J_d)^{-1} J_d^T J_x$ over the measured features (rows of unmeasured
     features stay 0); inputs are the point coordinates, then the sources `names`.
@@ -442,6 +457,7 @@ def _deviation_sensitivities(
         float(ball_radius),
         transform,
         approach is not None,
+        radius,
     )
     j_d, j_x = map(
         np.asarray, jac_fn(dev0, x0, None if approach is None else jnp.asarray(approach))
