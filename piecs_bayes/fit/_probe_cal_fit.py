@@ -43,6 +43,7 @@ from ..errors import InputError
 from ..io import CalibrationArtefact, ProbeCalibration, approach_angle, lobe_basis
 from ._bayes import gaussian_loglik, sample_posterior
 from ._least_squares import least_squares
+from ._robust import TUNING
 from ._sigma import DECLARED_DOF
 
 __all__ = [
@@ -144,13 +145,23 @@ class _Design:
         key = np.c_[np.round(np.degrees(self.theta), 3) % 360.0, self.size_index]
         return np.unique(key, axis=0, return_index=True)[1]
 
+    def _rows(self, orders, i) -> np.ndarray:
+        dc = np.where(self.sphere[i, None], self.approach[i], self.sign[i, None] * self.axis[i])
+        basis = lobe_basis(self.theta[i], orders)
+        return np.c_[dc[:, list(self.free)], -self.sign[i, None] * basis]
+
     def nominal_design(self, orders) -> np.ndarray:
         """The linearised design at the nominal over the distinct directions."""
-        i = self.distinct()
-        dc = np.where(self.sphere[i, None], self.approach[i], self.sign[i, None] * self.axis[i])
-        return np.c_[
-            dc[:, list(self.free)], -self.sign[i, None] * lobe_basis(self.theta[i], orders)
-        ]
+        return self._rows(orders, self.distinct())
+
+    def linear_start(self, orders) -> np.ndarray:
+        """The least-squares solution of the model linearised at the nominal centre
+        (exact for a ring, a diameter or faces: their model is linear)."""
+        d = self.centres - self.centre0
+        dist = np.where(self.sphere, np.hypot(d[:, 0], d[:, 1]),
+                        -self.sign * np.sum(self.axis * d, axis=1))  # fmt: skip
+        e0 = dist - self.sizes[self.size_index]
+        return np.linalg.lstsq(self._rows(orders, np.arange(len(self))), -e0, rcond=None)[0]
 
     def angles_text(self) -> str:
         deg = np.unique(np.round(np.degrees(self.theta) % 360.0, 1))
@@ -249,8 +260,9 @@ def fit_probe_calibration(
     - `sigma_known`: the covariance from `sigma_declared` (dof infinite) instead of
       the residuals (dof = n - p).
     - `method`: ``"lsq"`` ((robust) least squares, `loss`; Huber by default with the
-      package's tuning) or ``"bayes"`` (emcee, the certificate a normal prior on the
-      sizes; start at the least-squares fit).
+      package's tuning times `sigma_declared` as its scale, as the part fits; the
+      linear loss below 3 dof, too few points to tell an outlier) or ``"bayes"``
+      (emcee, the certificate a normal prior on the sizes; started at the fit).
     - `face` ``(n,)`` bool: which points are the face pair's (default: the approach
       is nearer Z than X).
     - `nsteps`, `seed`, `progress`, `sampler`: the sampler's (``"bayes"``:
@@ -270,10 +282,13 @@ def fit_probe_calibration(
     check_orders(design, orders, sigma_known=sigma_known)
     args = design.args(orders) | {"S": jnp.asarray(design.sizes)}
     nc = len(design.free)
-    r0 = np.hypot(*(design.centres - design.centre0).T) - design.sizes[0]
-    y0 = np.r_[np.zeros(nc), float(np.median(r0)) if design.sphere.all() else 0.0,
-               np.zeros(2 * len(orders))]  # fmt: skip
-    res = least_squares(_lsq_fn, jnp.asarray(y0), args, loss=loss,
+    y0 = design.linear_start(orders)
+    if len(design) - y0.size < 3:
+        loss = "linear"
+    # the robust scale as the part fits take it (jobs.robust_scale): the declared
+    # repeatability times the loss's tuning; a MAD of a few points can collapse to 0
+    scale = TUNING.get(loss, 1.0) * sigma_declared if loss != "linear" else None
+    res = least_squares(_lsq_fn, jnp.asarray(y0), args, loss=loss, scale=scale,
                         sigma=sigma_declared if sigma_known else None)  # fmt: skip
     y, cov = np.asarray(res.params_flat), np.asarray(res.covariance)
     J, w = np.asarray(res.jacobian), np.asarray(res.weights)

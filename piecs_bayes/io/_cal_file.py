@@ -163,11 +163,12 @@ class CalibrationFile:
     inputs: tuple[Path, ...] = field(default=())
 
 
-def _check_keys(r: Reader, table: dict, name: str) -> None:
+def _check_keys(r: Reader, table: dict, name: str, shown: str | None = None) -> None:
     allowed = _KEYS[name]
+    shown = name if shown is None else shown
     for key, val in table.items():
         if key not in allowed:
-            path = f"{name}.{key}" if name else key
+            path = f"{shown}.{key}" if shown else key
             raise r.error(path, f"unknown key {key!r}; expected one of {', '.join(allowed)}",
                           value=val)  # fmt: skip
 
@@ -242,7 +243,7 @@ def _probe_files(r: Reader, tree: dict, base: Path) -> tuple[CalibrationProbeFil
     out = []
     for i, row in enumerate(rows):
         path = f"probe_files[{i}]."
-        _check_keys(r, row, "probe_files")
+        _check_keys(r, row, "probe_files", f"probe_files[{i}]")
         file = _string(r, row, "file", path)
         fmt = r.choice(row, "format", path, PROBE_FORMATS, "csv")
         x_mode = r.choice(row, "x_mode", path, ("diameter", "radius"), "diameter")
