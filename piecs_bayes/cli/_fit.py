@@ -17,7 +17,8 @@ EXAMPLES = {
     "compensate": "piecs-bayes compensate data/demo/study.toml --out reports/comp",
     "simulate": "piecs-bayes simulate demo --out data/demo --seed 20261123\n"
     "  piecs-bayes simulate gauge reports/plan/gauging.ngc --study data/demo/study.toml "
-    "--truth data/demo/truth.json --out probe_points.txt",
+    "--truth data/demo/truth.json --out probe_points.txt\n"
+    "  piecs-bayes simulate calibration --out data/cal --seed 3",
 }
 
 
@@ -84,11 +85,14 @@ def register(sub) -> None:
     p = subcommand(
         sub,
         "simulate",
-        "Write simulated data sets with known truth (demo part, batch run), or run a "
+        "Write simulated data sets with known truth (demo part, batch run, probe "
+        "calibration on a sphere), or run a "
         "gauging program on a simulated machine (gauge) and write the control's probe file.",
         EXAMPLES["simulate"],
     )
-    p.add_argument("which", choices=("demo", "batch", "gauge"), help="which data set")
+    p.add_argument(
+        "which", choices=("demo", "batch", "gauge", "calibration"), help="which data set"
+    )
     p.add_argument("program", nargs="?", type=Path, default=None, help="gauge: the gauging program")
     p.add_argument("--study", type=Path, default=None, help="gauge: the study (TOML)")
     p.add_argument(
@@ -98,7 +102,8 @@ def register(sub) -> None:
         "--repeatability",
         type=T.nonneg_mm,
         default=None,
-        help="gauge: the probe's repeatability sd along the move (mm; default: the study's)",
+        help="gauge, calibration: the probe's repeatability sd along the move (mm; default: "
+        "the study's; calibration: 0.0015)",
     )
     p.add_argument(
         "--pretravel",
@@ -214,6 +219,13 @@ def cmd_simulate(args, console) -> int:
             "did you mean 'simulate gauge'?"
         )
     out = args.out or Path("data") / args.which
+    if args.which == "calibration":
+        from ..jobs import write_calibration_sim
+
+        rep = 0.0015 if args.repeatability is None else args.repeatability
+        for p in write_calibration_sim(out, seed=args.seed, repeatability=rep):
+            console.say(f"wrote {p}")
+        return 0
     if args.which == "demo":
         simulate.write_demo(out, seed=args.seed or 20261123)
     else:

@@ -44,6 +44,10 @@ from ._priors import ScaledInvChi2 as ScaledInvChi2
 from ._priors import StudentT as StudentT
 from ._priors import Uniform as Uniform
 from ._priors import prior_from_spec as prior_from_spec
+from ._probe_cal_fit import AUTO_ORDERS as AUTO_ORDERS
+from ._probe_cal_fit import COND_LIMIT as COND_LIMIT
+from ._probe_cal_fit import fit_probe_calibration as fit_probe_calibration
+from ._probe_cal_fit import repeatability_check as repeatability_check
 from ._profile_fit import ProfileFit as ProfileFit
 from ._profile_fit import fit_profile as fit_profile
 from ._robust import TUNING as TUNING

@@ -5,6 +5,12 @@ from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._atomic import write_bytes_atomic as write_bytes_atomic
 from ._atomic import write_file_atomic as write_file_atomic
 from ._atomic import write_text_atomic as write_text_atomic
+from ._cal_file import ARTEFACT_KINDS as ARTEFACT_KINDS
+from ._cal_file import CalibrationArtefact as CalibrationArtefact
+from ._cal_file import CalibrationFile as CalibrationFile
+from ._cal_file import CalibrationProbeFile as CalibrationProbeFile
+from ._cal_file import parse_orders as parse_orders
+from ._cal_file import read_calibration_file as read_calibration_file
 from ._control_probe import PROBE_FORMATS as PROBE_FORMATS
 from ._control_probe import PlanPoints as PlanPoints
 from ._control_probe import read_control_probe as read_control_probe

@@ -16,6 +16,8 @@ study and returns immutable data; `piecs_bayes.export` renders and writes it.
 - `init_study`: a new study whose profile is the finish contour of a part program;
 - `simulate_gauge`: a gauging program run on a simulated machine against a truth
   part, and the probe file the control would write;
+- `calibrate_probe`: a probe's effective radius r(theta) from a calibration file
+  (`simulate_calibration`, `write_calibration_sim`: a simulated run with its truth);
 - `apply_route`: the one route of the correction to the machine (program, error
   spec or tool offset; never two).
 """
@@ -75,9 +77,14 @@ from ._plan import ProbePlan as ProbePlan
 from ._plan import feature_fractions as feature_fractions
 from ._plan import plan_more as plan_more
 from ._plan import plan_study as plan_study
+from ._probe_cal import calibrate_probe as calibrate_probe
+from ._probe_cal import calibration_points as calibration_points
+from ._probe_cal import parse_orders_option as parse_orders_option
 from ._results import InputFile as InputFile
 from ._results import JobResults as JobResults
 from ._results import package_versions as package_versions
+from ._sim_cal import simulate_calibration as simulate_calibration
+from ._sim_cal import write_calibration_sim as write_calibration_sim
 from ._sim_gauge import GaugeRun as GaugeRun
 from ._sim_gauge import GaugeTrip as GaugeTrip
 from ._sim_gauge import read_truth as read_truth
