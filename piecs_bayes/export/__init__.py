@@ -18,6 +18,7 @@ from ._figures_feedback import feedback_track_figure as feedback_track_figure
 from ._figures_posterior import corner_figure as corner_figure
 from ._figures_posterior import diagnostics_figure as diagnostics_figure
 from ._figures_posterior import trace_figure as trace_figure
+from ._figures_probe import probe_calibration_figure as probe_calibration_figure
 from ._figures_profile import offset_figure as offset_figure
 from ._figures_profile import profile_figure as profile_figure
 from ._figures_residuals import residuals_figure as residuals_figure
