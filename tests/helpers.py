@@ -290,3 +290,18 @@ def gauge_ready(init_text: str, *, small: bool = False) -> str:
         text = text.replace("[program]\n", f"[program]\nstock = {stock}\n", 1)
         text += f"\n[plan]\nclearance = {clearance}\nend_clearance = {end}\n"
     return text
+
+
+def lobing_probe():
+    """A lobing touch-trigger probe with its calibration, as the probe calibration tests
+    use it: r0 4 um above a 1 mm ball, a 2-lobe term of 0.58 um and a 3-lobe term of
+    1.5 um; the covariance of a 24-direction sphere calibration with 1.5 um
+    repeatability and a certificate u(R) of 0.25 um."""
+    from piecs_bayes.io import ProbeCalibration
+
+    s, n = 0.0015, 24
+    return ProbeCalibration(
+        (2, 3), [1.004, 0.0005, -0.0003, 0.0015 * math.cos(0.3), 0.0015 * math.sin(0.3)],
+        np.diag([s**2 / n + 0.00025**2] + [2 * s**2 / n] * 4), date="2026-11-30", feed=200.0,
+        probe="T9",
+    )  # fmt: skip

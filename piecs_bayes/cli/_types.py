@@ -50,15 +50,16 @@ def finite_mm(text: str) -> float:
 
 
 def mm_or_file(text: str):
-    """A finite length (mm), or else the path of an existing file."""
+    """A finite length (mm) when it reads as a number, else an existing file's path."""
     try:
-        return finite_mm(text)
-    except argparse.ArgumentTypeError:
+        float(text)
+    except ValueError:
         if Path(text).is_file():
             return Path(text)
         raise argparse.ArgumentTypeError(
             f"expected a length in mm or an existing file, got {text!r}"
         ) from None
+    return finite_mm(text)
 
 
 def positive_float(text: str) -> float:

@@ -33,6 +33,7 @@ from ._batch import fit_study_batch as fit_study_batch
 from ._batch import path_uncertainty_batch as path_uncertainty_batch
 from ._calibrated import approach_directions as approach_directions
 from ._calibrated import calibrated_points as calibrated_points
+from ._calibrated import calibration_warnings as calibration_warnings
 from ._calibrated import lobing_pretravel as lobing_pretravel
 from ._calibrated import radius_components as radius_components
 from ._calibration import CoverageResult as CoverageResult

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import gauge_ready
+from helpers import gauge_ready, lobing_probe
 
 from piecs_bayes.export import plan_json, plan_program
 from piecs_bayes.gcode import rs274_path, run_rs274
@@ -45,8 +45,10 @@ def _study_text(program: Path, tmp: Path, *, ball: float) -> str:
 
 
 def _loop(tmp: Path, program: Path, truth_by_order, *, controller="linuxcnc", ball=1.0,
-          points=None):  # fmt: skip
-    """init -> plan -> simulate gauge -> read -> fit: the study, the fit and the truth."""
+          points=None, pretravel=None, probe_keys=""):  # fmt: skip
+    """init -> plan -> simulate gauge -> read -> fit: the study, the fit and the truth
+    (`pretravel`: the simulated probe's; `probe_keys`: more `[probe]` lines to read
+    the probe file with)."""
     text = _study_text(program, tmp, ball=ball)
     (tmp / "study.toml").write_text(text)
     study = load_study(tmp / "study.toml")
@@ -58,7 +60,7 @@ def _loop(tmp: Path, program: Path, truth_by_order, *, controller="linuxcnc", ba
     prog.write_text(plan_program(plan))
     run = simulate_gauge(
         prog, study, truth, repeatability=study.probe.repeatability, seed=11,
-        x_mode_fanuc=study.probe.x_mode if controller == "fanuc" else None,
+        x_mode_fanuc=study.probe.x_mode if controller == "fanuc" else None, pretravel=pretravel,
     )  # fmt: skip
     run.write(tmp / "probe_points.txt")
     fmt, name = ("fanuc-dprnt", "probe_points.txt") if controller == "fanuc" else (
@@ -69,7 +71,7 @@ def _loop(tmp: Path, program: Path, truth_by_order, *, controller="linuxcnc", ba
     text = text.replace(
         "probe_files = []",
         f'probe_files = ["{name}"]\nprobe_format = "{fmt}"\nprobe_plan = "plan/plan.json"',
-    )
+    ).replace("[probe]\n", f"[probe]\n{probe_keys}", 1)
     (tmp / "study.toml").write_text(text)
     study = load_study(tmp / "study.toml")
     return study, fit_study(study), truth
@@ -120,6 +122,30 @@ def test_the_demo_loop(tmp_path, controller):
     study, fit, truth = _loop(tmp_path, DEMO / "finish.ngc", _demo_truth, controller=controller)
     chars = _check(study, fit, truth, tmp_path)
     assert set(chars) == set(study.profile.ids)
+
+
+@pytest.mark.parametrize("calibrated", [False, True], ids=["one_radius", "calibrated"])
+def test_the_loop_with_a_lobing_probe(tmp_path, calibrated):
+    """The simulated machine's probe lobes (tests/jobs/test_probe_calibration_use.py:
+    r0 4 um above the 1 mm ball, 0.6 um and 1.5 um lobes of orders 2 and 3; `simulate
+    gauge --pretravel PROBE_CAL`). Read with one radius, some characteristic is off by
+    more than 3 u; with `[probe] calibration` every one is within 3 u and the adjusted
+    path's vertices within 3 u of the perfect correction's."""
+    from piecs_bayes.jobs import lobing_pretravel
+
+    lobing = lobing_probe()
+    (tmp_path / "probe_cal.json").write_text(lobing.to_json_text())
+    keys = 'calibration = "probe_cal.json"\n' if calibrated else ""
+    study, fit, truth = _loop(tmp_path, DEMO / "finish.ngc", _demo_truth,
+                              pretravel=lobing_pretravel(lobing, 1.0), probe_keys=keys)  # fmt: skip
+    if calibrated:
+        assert study.probe.calibration is not None
+        _check(study, fit, truth, tmp_path)
+        return
+    chars = characteristics(study, fit, at="worst")
+    off = {f.id: abs(chars[f.id].mean - float(normal_deviation(f, truth[f.id], chars[f.id].t)))
+           / chars[f.id].sd for f in study.profile.features}  # fmt: skip
+    assert max(off.values()) > 3.0, off
 
 
 def test_the_loop_on_a_bore(tmp_path):

@@ -15,10 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import lobing_probe
 
 from piecs_bayes.errors import InputError
 from piecs_bayes.fit import CALIBRATION_SOURCE, RadiusComponents, fit_profiles, to_part_frame
-from piecs_bayes.io import ProbeCalibration, approach_angle, load_study
+from piecs_bayes.io import approach_angle, load_study
 from piecs_bayes.jobs import (
     approach_directions,
     calibrated_points,
@@ -38,12 +39,8 @@ from piecs_bayes.jobs.simulate import (
 DEMO = Path(__file__).resolve().parents[2] / "data" / "demo"
 PROFILE = demo_profile()
 TRUTH = process_deviations(PROFILE, DEMO_ERRORS)
-SIGMA, N_CAL = 0.0015, 24
-COV = np.diag([SIGMA**2 / N_CAL + 0.00025**2] + [2 * SIGMA**2 / N_CAL] * 4)
-LOBING = ProbeCalibration(
-    (2, 3), [1.004, 0.0005, -0.0003, 0.0015 * math.cos(0.3), 0.0015 * math.sin(0.3)], COV,
-    date="2026-11-30", feed=200.0, probe="T9",
-)  # fmt: skip
+SIGMA = 0.0015
+LOBING = lobing_probe()
 FEW = {"face_end": 3, "dia_24": 8, "taper": 4, "dia_30": 5, "fillet": 5, "shoulder": 6, "dia_44": 7}
 
 
@@ -209,3 +206,29 @@ def test_a_calibration_file_of_other_units_or_format_is_refused(calibrated_study
     (calibrated_study / "probe_cal.json").write_text(json.dumps(bad))
     with pytest.raises(InputError, match="not symmetric positive semi-definite"):
         load_study(calibrated_study / "study.toml")
+
+
+def test_a_calibration_at_another_feed_or_too_old_is_a_warning_in_the_report(calibrated_study):
+    """Made at 200 mm/min: probing at 400 is a warning; made 2026-11-30: older than a
+    `calibration_max_age_days` of 1 on 2026-12-02 is one. The main job issues them,
+    lists the calibration among its inputs, and the report shows it (r(theta) figure)."""
+    import datetime as dt
+    from dataclasses import replace
+
+    from piecs_bayes.export import report_html
+    from piecs_bayes.jobs import calibration_warnings, run_job
+
+    study = load_study(_edit(calibrated_study, "feed = 200.0", "feed = 400.0"))
+    day = dt.date(2026, 12, 2)
+    (msg,) = calibration_warnings(study.probe, today=day)
+    assert "feed of 200 mm/min, the study probes at 400 mm/min" in msg
+    old = replace(study.probe, feed=200.0, calibration_max_age_days=1.0)
+    (msg,) = calibration_warnings(old, today=day)
+    assert "is 2 days old (made 2026-11-30)" in msg
+    assert calibration_warnings(replace(old, calibration_max_age_days=30.0), today=day) == []
+    with pytest.warns(UserWarning, match="probing feed of 200 mm/min"):
+        res = run_job(study, bayes=False)
+    assert any("probing feed" in w for w in res.warnings)
+    assert {i.role: i.path.name for i in res.inputs}["probe calibration"] == "probe_cal.json"
+    html = report_html(res)
+    assert "Probe calibration: r(θ)" in html and "probe_calibration" in html
