@@ -62,3 +62,38 @@ def test_a_miss_exits_1_and_bad_input_2(capsys, tmp_path):
     # simulate demo|batch as before; a program there is refused
     rc, text = _run(capsys, ["simulate", "demo", prog, "--out", tmp_path / "d"])
     assert rc == 2 and "did you mean 'simulate gauge'" in text, text
+
+
+def test_pretravel_from_a_probe_calibration_is_a_lobing_probe(capsys, tmp_path):
+    """`--pretravel probe_cal.json`: each trip comes r(theta) from the surface instead
+    of the ball radius; with no noise the diameters' points (approached along -X, 180
+    degrees) move out by r(180 deg) - 1 mm, the face's (along -Z, -90 degrees) by
+    r(-90 deg) - 1 mm, to the file's 6 decimals."""
+    import numpy as np
+    from helpers import lobing_probe
+
+    lobing = lobing_probe()
+    (tmp_path / "probe_cal.json").write_text(lobing.to_json_text())
+    prog = _plan(capsys, tmp_path)
+    base = ["simulate", "gauge", prog, "--study", DEMO / "study.toml", "--truth",
+            DEMO / "truth.json", "--repeatability", "0", "-q"]  # fmt: skip
+    rc, _ = _run(capsys, [*base, "--out", tmp_path / "round.txt"])
+    assert rc == 0
+    rc, text = _run(capsys, [*base, "--out", tmp_path / "lobing.txt", "--pretravel",
+                             tmp_path / "probe_cal.json"])  # fmt: skip
+    assert rc == 0, text
+
+    def xz(name):
+        return np.loadtxt(tmp_path / name)[:, [0, 2]]
+
+    from piecs_bayes.io import read_plan_points
+
+    shift = xz("lobing.txt") - xz("round.txt")
+    feature = np.asarray(read_plan_points(tmp_path / "plan" / "plan.json").feature)
+    r = lobing.radius(np.radians([180.0, -90.0])) - 1.0
+    dia, face = shift[feature == "dia_24"], shift[feature == "face_end"]
+    assert len(dia) == len(face) == 5
+    np.testing.assert_allclose(dia, np.tile([r[0], 0.0], (5, 1)), atol=2e-6)
+    np.testing.assert_allclose(face, np.tile([0.0, r[1]], (5, 1)), atol=2e-6)
+    rc, text = _run(capsys, [*base, "--out", tmp_path / "x.txt", "--pretravel", "nope.json"])
+    assert rc == 2 and "expected a length in mm or an existing file" in text, text
