@@ -184,3 +184,38 @@ def test_bayes_agrees_with_least_squares():
     assert np.all(np.abs(bay.coefficients - lsq.coefficients) < 0.1 * u)
     np.testing.assert_allclose(np.sqrt(np.diag(bay.cov)), u, rtol=0.1)
     assert math.isinf(bay.dof)
+
+
+def test_a_controls_probeopen_file_read_against_its_plan_gives_the_csvs_calibration(tmp_path):
+    """The same sphere run written as LinuxCNC's PROBEOPEN file (6 decimals) and read
+    against the plan of its 24 probe moves (approach from the plan): the calibration
+    equals the CSV's to the file's rounding (1e-6 mm)."""
+    import json
+
+    from piecs_bayes.jobs import calibrate_probe, write_calibration_sim
+
+    write_calibration_sim(tmp_path, seed=3)
+    csv_cal = calibrate_probe(tmp_path / "calibration.toml")
+    rows = np.loadtxt(tmp_path / "cal_points.csv", delimiter=",", skiprows=1, usecols=(1, 2))
+    centre = np.array([0.0, -40.0])
+    a = (centre - rows) / np.linalg.norm(centre - rows, axis=1)[:, None]
+    nominal = centre - (12.5002 + 3.0) * a
+    pts = [{"index": i + 1, "feature": "sphere", "contact": list(nominal[i] + 3.0 * a[i]),
+            "centre": list(nominal[i]), "approach": list(a[i]), "start": list(nominal[i] - a[i]),
+            "target": list(nominal[i] + 0.5 * a[i])} for i in range(len(rows))]  # fmt: skip
+    plan = {"format": "piecs_bayes probe plan 1", "units": "mm", "x": "radius",
+            "program_x_mode": "radius", "controller": "linuxcnc", "points": pts}  # fmt: skip
+    (tmp_path / "plan.json").write_text(json.dumps(plan))
+    (tmp_path / "probe_points.txt").write_text("".join(
+        f"{x:f} 0.000000 {z:f} 0.000000 0.000000 0.000000 0.000000 0.000000 0.000000\n"
+        for x, z in rows))  # fmt: skip
+    text = (tmp_path / "calibration.toml").read_text()
+    text = text.replace(
+        'file = "cal_points.csv"\nformat = "csv"\nx_mode = "radius"',
+        'file = "probe_points.txt"\nformat = "linuxcnc"\nplan = "plan.json"',
+    )
+    (tmp_path / "control.toml").write_text(text)
+    cal = calibrate_probe(tmp_path / "control.toml")
+    assert cal.orders == csv_cal.orders
+    np.testing.assert_allclose(cal.coefficients, csv_cal.coefficients, atol=1e-6)
+    np.testing.assert_allclose(np.sqrt(np.diag(cal.cov)), np.sqrt(np.diag(csv_cal.cov)), rtol=1e-3)
