@@ -25,7 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import jax.numpy as jnp
-import numpy as np
 
 from ..geometry import machine_to_part
 
@@ -84,13 +83,11 @@ class RadiusComponents:
     @classmethod
     def from_calibration(cls, cal) -> RadiusComponents:
         """From an `io.ProbeCalibration` (its covariance's eigen-decomposition)."""
-        lam, vec = np.linalg.eigh(np.asarray(cal.cov, dtype=float))
-        keep = lam > 1e-12 * max(float(lam.max()), 1e-300)
-        v = vec[:, keep]
+        sds, v = cal.components()
         return cls(
             tuple(int(k) for k in cal.orders),
             tuple(tuple(float(x) for x in row) for row in v),
-            tuple(float(x) for x in np.sqrt(lam[keep])),
+            tuple(float(x) for x in sds),
         )
 
     @property

@@ -133,15 +133,15 @@ class ProbeCalibration:
         b = lobe_basis(theta, self.orders)
         return np.sqrt(np.maximum(np.einsum("ni,ij,nj->n", b, self.cov, b), 0.0))
 
-    def components(self, theta) -> tuple[np.ndarray, np.ndarray]:
+    def components(self) -> tuple[np.ndarray, np.ndarray]:
         """The covariance as independent components: their standard deviations
-        ``(m,)`` and each one's effect on the radius at `theta` per unit
-        ``(n, m)``: ``cov(r(theta)) = E diag(sd^2) E^T`` exactly. Components with no
+        ``(m,)`` and the coefficients each moves per unit ``(p, m)`` (eigenvectors),
+        so that the radius at theta moves by ``lobe_basis(theta) @ vectors`` per unit
+        and ``cov = vectors diag(sd^2) vectors^T`` exactly. Components with no
         variance are left out."""
         lam, vec = np.linalg.eigh(self.cov)
         keep = lam > 1e-12 * max(float(lam.max()), 1e-300)
-        effects = lobe_basis(theta, self.orders) @ vec[:, keep]
-        return np.sqrt(lam[keep]), effects
+        return np.sqrt(lam[keep]), vec[:, keep]
 
     def age_days(self, today: _dt.date | None = None) -> float | None:
         """Days since the calibration's date (None when it has none)."""
