@@ -98,19 +98,23 @@ def profile_log_posterior(
     with_approach: bool = False,
     file: str | None = None,
     radius=None,
+    weighted: bool = False,
 ):
     """Build ``(log_prob(theta, args), layout, priors)`` for a profile.
 
     ``args`` is ``(machine_points, approach)``: the ball centres in machine
     coordinates (radius X) in the order of ``feature_ids`` and, when
-    ``with_approach``, the unit approach directions (else ``None``).
+    ``with_approach``, the unit approach directions (else ``None``). With
+    ``weighted``, ``(machine_points, approach, weights)``: each point's log likelihood
+    counts ``weights`` times (0 leaves a point out, so that parts whose points differ
+    only in which are left out share one compiled function).
     ``sources`` maps source names to prior specs (the study's ``[uncertainty]``
     tables); a probe calibration's components (``probe_cal_<j>``, normal priors)
     need its `radius` (`RadiusComponents`). The function is cached per structure,
     so many parts of one study share one compiled log posterior.
     """
     m = _model(*_model_key(profile, feature_ids, sources, ball_radius, transform, sigma,
-                           likelihood, nu, with_approach, file, radius))  # fmt: skip
+                           likelihood, nu, with_approach, file, radius), weighted)  # fmt: skip
     return m.log_prob, m.layout, m.priors
 
 
@@ -157,6 +161,7 @@ def _model(
     with_approach,
     file,
     radius=None,
+    weighted=False,
 ) -> _Model:
     sources = {k: dict(v) for k, v in frozen_sources}
     unknown = [
@@ -190,7 +195,7 @@ def _model(
 
     def residuals(theta, args):
         """The residuals (in `groups` order) and the noise scale of `theta`."""
-        points, appr = args
+        points, appr = args[:2]
         r = probe_residuals(
             pairs,
             [theta[sl] for _, sl, _ in groups],
@@ -206,14 +211,20 @@ def _model(
     def loglik(r, s):
         return gaussian_loglik(r, s) if likelihood == "gaussian" else student_t_loglik(r, s, nu)
 
+    def per_point(r, s):
+        return jax.vmap(lambda ri: loglik(ri[None], s))(r)  # the fit's likelihood, per point
+
     def log_prob(theta, args):
         lp = log_prior(theta)
-        ll = loglik(*residuals(theta, args))
+        if weighted:
+            r, s = residuals(theta, args)
+            ll = jnp.sum(jnp.asarray(args[2])[order] * per_point(r, s))
+        else:
+            ll = loglik(*residuals(theta, args))
         return jnp.where(jnp.isfinite(lp), lp + ll, -jnp.inf)
 
     def pointwise(theta, args):
-        r, s = residuals(theta, args)
-        ll = jax.vmap(lambda ri: loglik(ri[None], s))(r)  # the fit's likelihood, per point
+        ll = per_point(*residuals(theta, args))
         return jnp.full(feature_ids.size, jnp.nan, dtype=ll.dtype).at[order].set(ll)
 
     return _Model(log_prob, pointwise, lay, priors)
@@ -488,6 +499,7 @@ def fit_profiles_bayes(
     file: str | None = None,
     lines=None,
     radius=None,
+    inlier=None,
 ):
     """[`fit_profile_bayes`][] for many parts: parts with the same pattern of
     triggers (feature of each point, in order) share one compiled log posterior
@@ -495,7 +507,11 @@ def fit_profiles_bayes(
 
     **Arguments:** `part_ids`, `feature_ids`, `machine_points` (and `approach`)
     (and `lines`) per trigger, as in `fit_profile_bayes`; `starts`: `{part: {feature: deviation}}`
-    (e.g. `BatchFit.values`); the rest as `fit_profile_bayes`.
+    (e.g. `BatchFit.values`); `inlier`: a boolean per trigger, the points to fit (e.g.
+    not `BatchFit.outlier_mask`; default all): the others weigh 0 in the likelihood,
+    so parts that differ only in which points they leave out still share one compiled
+    log posterior (a part that would leave every point of a feature out is fitted on
+    its inliers alone, that feature unmeasured); the rest as `fit_profile_bayes`.
 
     **Returns:** `{part: BayesProfileFit}` in the order of first appearance.
     """
@@ -506,19 +522,22 @@ def fit_profiles_bayes(
     part_ids = np.asarray(part_ids).astype(str)
     feature_ids = np.asarray(feature_ids).astype(str)
     machine_points = np.asarray(machine_points, dtype=float)
+    keep = np.ones(part_ids.size, bool) if inlier is None else np.asarray(inlier, bool)
     order = list(dict.fromkeys(part_ids.tolist()))
     patterns: dict[tuple, list[str]] = {}
-    rows_of = {}
+    rows_of = {}  # the rows sampled (inliers and, weighted, the points weighing 0)
     for p in order:
         rows = np.flatnonzero(part_ids == p)
-        rows_of[p] = rows
-        patterns.setdefault(tuple(feature_ids[rows].tolist()), []).append(p)
+        ids, w = feature_ids[rows], keep[rows]
+        weighted = not w.all() and set(ids[w]) == set(ids)
+        rows_of[p] = rows if weighted else rows[w]
+        patterns.setdefault((tuple(feature_ids[rows_of[p]].tolist()), weighted), []).append(p)
     out = {}
-    for g, (pattern, parts) in enumerate(patterns.items()):
+    for g, ((pattern, weighted), parts) in enumerate(patterns.items()):
         log_prob, lay, priors = profile_log_posterior(
             profile, pattern, sources=sources, ball_radius=ball_radius, transform=transform,
             sigma=sigma, likelihood=likelihood, nu=nu, with_approach=approach is not None,
-            file=file, radius=radius,
+            file=file, radius=radius, weighted=weighted,
         )  # fmt: skip
         x0 = np.zeros((len(parts), len(lay.names)))
         for i, p in enumerate(parts):
@@ -530,13 +549,14 @@ def fit_profiles_bayes(
                 x0[i, lay.sigma_index] = sigma
         pts = np.stack([machine_points[rows_of[p]] for p in parts])
         appr = None if approach is None else np.stack([approach[rows_of[p]] for p in parts])
+        args = (pts, appr) + ((np.stack([keep[rows_of[p]] * 1.0 for p in parts]),) * weighted)
         posts = sample_posteriors(
-            log_prob, x0, names=lay.names, args=(pts, appr), nwalkers=nwalkers, nsteps=nsteps,
+            log_prob, x0, names=lay.names, args=args, nwalkers=nwalkers, nsteps=nsteps,
             seed=seed + g, progress=progress, n_ensembles=n_ensembles, on_fail=on_fail,
             moves=moves,
         )  # fmt: skip
         for p, post in zip(parts, posts, strict=True):
-            r = rows_of[p]
+            r = rows_of[p][keep[rows_of[p]]]  # the points fitted
             data = BayesData(
                 feature_ids=feature_ids[r], machine_points=machine_points[r],
                 approach=None if approach is None else np.asarray(approach)[r],

@@ -233,7 +233,7 @@ def _monte_carlo_hits(
     # chunks of parts: the lockstep sampler keeps every part's whole chain
     # (parts x walkers x steps x parameters) until it thins
     for lo in range(0, n_parts, bayes_chunk):
-        sel = keep & np.isin(sim["part"], bf.parts[lo : lo + bayes_chunk])
+        sel = np.isin(sim["part"], bf.parts[lo : lo + bayes_chunk])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # short chains on purpose: coverage is the check
             posts = fit_profiles_bayes(
@@ -241,7 +241,7 @@ def _monte_carlo_hits(
                 starts=starts, sources=sources, ball_radius=ball_radius,
                 transform=transform, sigma=noise_sd, nsteps=bayes_steps, n_ensembles=1,
                 nwalkers=bayes_walkers, progress=False, on_fail="ignore", seed=seed + 1 + lo,
-                radius=radius,
+                radius=radius, inlier=keep[sel],
             )  # fmt: skip
         for post in posts.values():
             u = monte_carlo_toolpath(profile, post.deviation_samples, grid=grid, p=p)
