@@ -529,7 +529,7 @@ def fit_profiles_bayes(
     for p in order:
         rows = np.flatnonzero(part_ids == p)
         ids, w = feature_ids[rows], keep[rows]
-        weighted = not w.all() and set(ids[w]) == set(ids)
+        weighted = inlier is not None and set(ids[w]) == set(ids)
         rows_of[p] = rows if weighted else rows[w]
         patterns.setdefault((tuple(feature_ids[rows_of[p]].tolist()), weighted), []).append(p)
     out = {}

@@ -265,11 +265,30 @@ def path_jacobian_function(profile: Profile, grid: PathGrid, gain=1.0, *, batche
     return _path_jacobian(profile, grid, key)
 
 
+#: draws per call of the compiled path function: every number of draws is evaluated
+#: in blocks of this size (the last one padded), so one compilation serves every part,
+#: whatever its posterior's number of kept draws
+PATH_BLOCK = 1024
+
+
 @functools.lru_cache(maxsize=64)
 def _batched_path(profile: Profile, grid: PathGrid, gain_key):
-    """Jitted path function vmapped over draws, cached per structure."""
+    """The path function over draws, `(vertices, offsets)` of each: jitted, vmapped and
+    called on blocks of `PATH_BLOCK` draws (cached per structure)."""
     gain = dict(gain_key) if isinstance(gain_key, tuple) else gain_key
-    return jax.jit(jax.vmap(path_function(profile, grid, gain)))
+    block = jax.jit(jax.vmap(path_function(profile, grid, gain)))
+
+    def over_draws(stacked):
+        m = len(stacked[0])
+        pad = -m % PATH_BLOCK
+        full = [
+            np.concatenate([np.asarray(a), np.repeat(np.asarray(a)[-1:], pad, 0)]) for a in stacked
+        ]
+        outs = [block(tuple(a[i : i + PATH_BLOCK] for a in full))
+                for i in range(0, m + pad, PATH_BLOCK)]  # fmt: skip
+        return tuple(np.concatenate([np.asarray(o[k]) for o in outs])[:m] for k in range(2))
+
+    return over_draws
 
 
 @functools.lru_cache(maxsize=64)
@@ -510,14 +529,13 @@ def monte_carlo_toolpath(
     rng = np.random.default_rng(seed)
     take = np.sort(rng.choice(m, max_draws, replace=False)) if m > max_draws else np.arange(m)
     stacked = tuple(
-        jnp.asarray(deviation_samples[f.id][take])
+        np.asarray(deviation_samples[f.id], float)[take]
         if f.id in deviation_samples
-        else jnp.zeros((len(take), f.nparams))
+        else np.zeros((len(take), f.nparams))
         for f in profile.features
     )
     batched = _batched_path(profile, grid, _gain_key(gain))
     verts, offs = batched(stacked)
-    verts, offs = np.asarray(verts), np.asarray(offs)
     vcov = np.array([np.cov(verts[:, j, :], rowvar=False) for j in range(verts.shape[1])])
     means = {
         f.id: np.asarray(s).mean(axis=0) for f, s in zip(profile.features, stacked, strict=True)

@@ -60,9 +60,9 @@ def test_weighted_log_posterior_equals_the_inliers_alone():
 
 
 def test_parts_that_flag_other_points_share_one_model():
-    sim = _sim(3)
+    sim = _sim(4)  # part 3 flags nothing
     part, ids, pts = sim["part"], sim["feature"], sim["points"]
-    n = ids.size // 3
+    n = ids.size // 4
     keep = np.ones(ids.size, bool)
     keep[[2, n + 5]] = False  # parts 0 and 1 flag one point each (other features)
     keep[2 * n : 2 * n + 3] = False  # part 2 flags every point of face_end
@@ -72,9 +72,11 @@ def test_parts_that_flag_other_points_share_one_model():
         PROFILE, part, ids, pts, starts=starts, sources=SOURCES, ball_radius=1.0,
         sigma=0.0015, nsteps=60, n_ensembles=1, progress=False, on_fail="ignore", inlier=keep,
     )  # fmt: skip
-    # one weighted model for parts 0 and 1, one of part 2's inliers alone
+    # one weighted model for parts 0 and 1 (and any part that flags nothing), one of
+    # part 2's inliers alone
     assert bp._model.cache_info().currsize == 2
-    p0, p1, p2 = (posts[p] for p in dict.fromkeys(part.tolist()))
+    p0, p1, p2, p3 = (posts[p] for p in dict.fromkeys(part.tolist()))
+    assert len(p3.data.feature_ids) == n
     assert len(p0.data.feature_ids) == len(p1.data.feature_ids) == n - 1
     assert np.array_equal(p0.data.machine_points, pts[:n][keep[:n]])
     assert "face_end" in p0.deviation_samples and "face_end" not in p2.deviation_samples
