@@ -130,6 +130,9 @@ class TrackModel:
     - `level0_sd`: prior sd of the level of part 0; `None`: diffuse.
     - `wear_reset`: the share of the wear of the old edge a declared tool change
       removes ($\\rho$: 1, a new edge starts unworn; 0, the change is a step only).
+    - `drift_decay`: $\\phi$ in $d_{k+1} = \\phi d_k + v_k$, in (0, 1]: 1 a wear rate
+      that persists; below 1 a transient (a warm-up, a new edge's fast initial wear)
+      whose rate decays by $\\phi$ per part.
     """
 
     level_sd: float
@@ -143,6 +146,7 @@ class TrackModel:
     drift0_mean: float = 0.0
     level0_sd: float | None = None
     wear_reset: float = 1.0
+    drift_decay: float = 1.0
 
     def __post_init__(self):
         for f in fields(self):
@@ -153,6 +157,9 @@ class TrackModel:
                 raise InputError(f"track model {f.name!r} must be a finite number, got {v!r}")
             if (v < 0 and f.name != "drift0_mean") or (f.name == "level0_sd" and v == 0):
                 raise InputError(f"track model {f.name!r} must be >= 0 (> 0), got {v!r}")
+        if not 0 < self.drift_decay <= 1:
+            raise InputError(f"track model 'drift_decay' must be in (0, 1], got "
+                             f"{self.drift_decay!r}")  # fmt: skip
         if self.step_prob + self.outlier_prob >= 1:
             raise InputError("track model: step_prob + outlier_prob must be < 1")
 
@@ -269,13 +276,20 @@ class Track:
 # --------------------------------------------------------------------------- helpers
 
 
-def _checked(values, u, tool_changes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _checked(values, u, tool_changes, missing: bool = False):
+    """`(y, u, declared)` checked; with `missing`, NaN values are parts not measured
+    (part 0 must be measured) and their `u` may be NaN too."""
     y = np.asarray(values, dtype=float)
     uu = np.broadcast_to(np.asarray(u, dtype=float), y.shape).astype(float)
     if y.ndim != 1 or y.size < 1:
         raise InputError(f"values must be a 1-D array of at least 1 part, got shape {y.shape}")
-    if not np.all(np.isfinite(y)):
-        raise InputError("values must be finite", value=int(np.sum(~np.isfinite(y))))
+    seen = ~np.isnan(y) if missing else np.ones(y.size, dtype=bool)
+    if not np.all(np.isfinite(y[seen])):
+        raise InputError("values must be finite", value=int(np.sum(~np.isfinite(y[seen]))))
+    if not seen[0]:
+        raise InputError("the first part must be measured (it sets the level)")
+    if not seen.all():  # u of a part not measured: only its predictive's width uses it
+        uu = np.where(seen, uu, np.nanmedian(np.where(seen, uu, np.nan)))
     if not (np.all(np.isfinite(uu)) and np.all(uu > 0)):
         raise InputError("u must be finite numbers > 0 (mm)")
     declared = np.zeros(y.size, dtype=bool)
@@ -304,6 +318,7 @@ def _params(models, reps: int = 1) -> dict:
         "odd2": col(lambda m: m.outlier_scale**2),
         "level0": col(lambda m: math.inf if m.level0_sd is None else m.level0_sd**2),
         "wear_reset": col(lambda m: m.wear_reset),
+        "drift_decay": col(lambda m: m.drift_decay),
     }
 
 
@@ -414,7 +429,7 @@ def fit_track_model(values, u, *, tool_changes=()) -> TrackModel:
     $\\prod_k p(y_k \\mid y_{<k})$ times its prior `GRID_LOG_PRIOR` (see the module
     doc); finite for any run of at least one part.
     """
-    y, uu, declared = _checked(values, u, tool_changes)
+    y, uu, declared = _checked(values, u, tool_changes, missing=True)
     out = run_grid(y, uu, declared, HYPER_GRID)
     total = out["loglik"][0].sum(1) + GRID_LOG_PRIOR
     return HYPER_GRID[int(np.argmax(total))]
@@ -436,7 +451,8 @@ def track(values, u, *, model: TrackModel | None = None, tool_changes=(), transf
     **Arguments:**
 
     - `values`: `(n_parts,)` deviations in production order (mm), as cut without
-      feedback correction (subtract any correction applied).
+      feedback correction (subtract any correction applied); NaN for a part not
+      measured (sampled inspection: a prediction step; part 0 must be measured).
     - `u`: `(n_parts,)` (or one number) their standard uncertainties (mm), > 0.
     - `model`: the hyper-parameters; `None` averages `HYPER_GRID` with weights from
       the parts before each part (empirical Bayes, see the module doc).
@@ -446,7 +462,7 @@ def track(values, u, *, model: TrackModel | None = None, tool_changes=(), transf
 
     **Returns:** a [`Track`][].
     """
-    y, uu, declared = _checked(values, u, tool_changes)
+    y, uu, declared = _checked(values, u, tool_changes, missing=True)
     beta, u_beta = _transfer(transfer)
     models = HYPER_GRID if model is None else (model,)
     out = run_grid(y, uu, declared, models)
