@@ -57,20 +57,9 @@ import numpy as np
 
 from ..errors import InputError
 from ._decision import decide
+from ._feedback_loop import anchor_loop, bayes_loop, held, loop_settings, schedule
 from ._settings import DecisionSettings
-from ._tracking import (
-    GRID_LOG_PRIOR,
-    HYPER_GRID,
-    Track,
-    TrackModel,
-    _checked,
-    _transfer,
-    grid_weights,
-    level_average,
-    run_grid,
-    track,
-)
-from ._tracking_decide import corrections
+from ._tracking import HYPER_GRID, Track, TrackModel, _checked, _transfer, track
 
 __all__ = [
     "BAYES_DECISION",
@@ -157,52 +146,6 @@ class PolicyResult:
         )
 
 
-# --------------------------------------------------------------------------- anchors
-
-
-def _anchor(dev, policy, st, half, declared):
-    """Corrections `(R, n)` and flags `(R,)` of an anchor policy on runs `dev` `(R, n)`."""
-    r_, n = dev.shape
-    c = np.zeros((r_, n))
-    flags = np.zeros(r_, dtype=int)
-    if policy == "none":
-        return c, flags
-    a = np.zeros(r_)
-    dd = np.zeros(r_)
-    window: list[np.ndarray] = []
-    for k in range(n - 1):
-        real = dev[:, k] + c[:, k]
-        e = dev[:, k]  # = real - c: the uncompensated estimate the policy can form
-        reset = k == 0 or declared[k]
-        if policy == "full":
-            c[:, k + 1] = c[:, k] - real
-        elif policy == "fixed_gain":
-            band, limit = st["null_band"] * half, st["upper_limit"] * half
-            big = np.abs(real) > limit
-            act = (np.abs(real) >= band) & ~big
-            c[:, k + 1] = c[:, k] - np.where(act, st["gain"] * real, 0.0)
-        elif policy == "mean_value":
-            window = [e] if reset else (window + [e])[-int(st["k"]) :]
-            c[:, k + 1] = -np.mean(window, axis=0)
-        elif policy == "ewma":
-            a = e if reset else st["lam"] * e + (1.0 - st["lam"]) * a
-            c[:, k + 1] = -a
-        elif policy == "dewma":
-            if reset:
-                a, dd = e, np.zeros(r_)
-            else:
-                a, dd = (
-                    st["lam1"] * e + (1.0 - st["lam1"]) * a,
-                    st["lam2"] * (e - a) + (1.0 - st["lam2"]) * dd,
-                )
-            c[:, k + 1] = -(a + dd)
-        else:
-            raise InputError(f"unknown policy {policy!r}; expected one of {POLICIES}")
-    if policy == "fixed_gain":  # every part beyond the upper limit, the last one too
-        flags = np.sum(np.abs(dev + c) > st["upper_limit"] * half, axis=1)
-    return c, flags
-
-
 def _check_settings(policy, settings) -> dict:
     if policy not in POLICIES:
         raise InputError(f"unknown policy {policy!r}; expected one of {POLICIES}", value=policy)
@@ -221,60 +164,6 @@ def _check_settings(policy, settings) -> dict:
     return st
 
 
-# --------------------------------------------------------------------------- bayes
-
-
-_CHUNK = 64  # runs filtered at once on the whole grid (memory: about 60 MB)
-_NO_LIMIT = 1e3  # mm: the decision's own limit, applied by the loop instead (`_held`)
-
-
-def _loop_settings(ds: DecisionSettings, tolerance) -> tuple[DecisionSettings, float]:
-    """The decision's settings in the loop (its own limit off) and the limit on one
-    adjustment (`max_correction`, default the tolerance width)."""
-    limit = tolerance[1] - tolerance[0] if ds.max_correction is None else ds.max_correction
-    return replace(ds, max_correction=_NO_LIMIT), float(limit)
-
-
-def _held(c_prev, adjustment, limit):
-    """True where an adjustment is larger than `limit` and does not bring the total
-    correction closer to zero (withheld: investigate first)."""
-    c_prev = np.asarray(c_prev)
-    return (np.abs(adjustment) > limit) & (np.abs(c_prev + adjustment) >= np.abs(c_prev))
-
-
-def _bayes_predictive(dev, u, declared, model, transfer):
-    """Level predictives `(R, n + 1)` mean and sd (column k: given parts < k, scaled by
-    the transfer), the scatter variance `(R, n + 1)` expected under the grid weights
-    and the PIT `(R, n)` of the one-step-ahead predictive of each part."""
-    models = HYPER_GRID if model is None else (model,)
-    scat2 = np.array([m.scatter_sd**2 for m in models])[None, :, None]
-    beta, u_beta = transfer
-    parts = []
-    for i in range(0, dev.shape[0], _CHUNK):
-        out = run_grid(dev[i : i + _CHUNK], u[i : i + _CHUNK], declared, models)
-        wts = grid_weights(out["loglik"], None if model is not None else GRID_LOG_PRIOR)
-        m, v = level_average(out, wts)
-        pit = np.sum(wts[:, :, :-1] * out["pit"], 1)
-        sd = np.sqrt(beta**2 * v + u_beta**2 * m**2)
-        parts.append((beta * m, sd, np.sum(wts * scat2, 1) * beta**2, pit))
-    return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
-
-
-def _bayes(dev, u, declared, tolerance, ds, model, transfer):
-    """Corrections `(R, n)` of the `bayes` policy on runs `dev` `(R, n)`: part by part,
-    the decision's correction (vectorised over runs, `_tracking_decide`); and the PIT
-    `(R, n)` of the one-step-ahead predictives."""
-    r_, n = dev.shape
-    m, sd, sc2, pit = _bayes_predictive(dev, u, declared, model, transfer)
-    ds, limit = _loop_settings(ds, tolerance)
-    c = np.zeros((r_, n))
-    for k in range(1, n):
-        p_sd = np.maximum(ds.process_sd, np.sqrt(sc2[:, k]))
-        adj = corrections(m[:, k] + c[:, k - 1], sd[:, k], p_sd, tolerance, ds)
-        c[:, k] = c[:, k - 1] + np.where(_held(c[:, k - 1], adj, limit), 0.0, adj)
-    return c, pit
-
-
 # --------------------------------------------------------------------------- public
 
 
@@ -288,8 +177,8 @@ def _tol(tolerance) -> tuple[float, float]:
     return lo, hi
 
 
-def _result(name, st, c, dev, tol, flags, half) -> PolicyResult:
-    real = dev + c
+def _result(name, st, c, dev, tol, flags, half, gain=1.0) -> PolicyResult:
+    real = dev + gain * c
     lo, hi = tol
     shown = dict(st)
     if name == "fixed_gain":
@@ -321,6 +210,9 @@ def replay(
     tolerance: tuple[float, float],
     tool_changes=(),
     decision_settings: DecisionSettings | None = None,
+    inspect_every: int = 1,
+    delay: int = 0,
+    gain: float = 1.0,
 ) -> PolicyResult:
     """Replay one policy over a run on the counterfactual of the module doc.
 
@@ -336,24 +228,22 @@ def replay(
     - `tool_changes`: indices of the parts cut with a new tool.
     - `decision_settings`: the one-part decision's settings for `bayes`
       (default `BAYES_DECISION`).
+    - `inspect_every`, `delay`, `gain`: the loop as the shop runs it (`_feedback_loop`):
+      every `inspect_every`-th part measured (from part 0), results `delay` parts
+      late, the correction acting at `gain` times its size (the policies assume 1).
 
-    **Returns:** a [`PolicyResult`][].
+    **Returns:** a [`PolicyResult`][] (`realised` $= \\delta_k + \\gamma c_k$).
     """
     dev, uu, declared = _checked(deviation, u, tool_changes)
+    c, flags, _ = replay_runs(
+        dev[None], uu[None], policy=policy, settings=settings, tolerance=tolerance,
+        tool_changes=tool_changes, decision_settings=decision_settings,
+        inspect_every=inspect_every, delay=delay, gain=gain,
+    )  # fmt: skip
     tol = _tol(tolerance)
     st = _check_settings(policy, settings)
     half = 0.5 * (tol[1] - tol[0])
-    if policy == "bayes":
-        ds = decision_settings if decision_settings is not None else BAYES_DECISION
-        c = _bayes(
-            dev[None], uu[None], declared, tol, ds, st.get("model"),
-            _transfer(st.get("transfer", 1.0)),
-        )[0][0]  # fmt: skip
-        flags = 0
-    else:
-        c, flags = _anchor(dev[None], policy, st, half, declared)
-        c, flags = c[0], flags[0]
-    return _result(policy, st, c, dev, tol, flags, half)
+    return _result(policy, st, c[0], dev, tol, flags[0], half, gain)
 
 
 def replay_runs(
@@ -365,17 +255,21 @@ def replay_runs(
     tolerance: tuple[float, float],
     tool_changes=(),
     decision_settings: DecisionSettings | None = None,
+    inspect_every: int = 1,
+    delay: int = 0,
+    gain=1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """[`replay`][] of one policy over many runs at once (for benchmarks).
 
     **Arguments:** as for [`replay`][], with `deviations` and `u` shaped `(R, n)`
-    (`u` broadcast) and the same declared tool changes for every run.
+    (`u` broadcast), the same declared tool changes for every run and `gain` one
+    number or `(R,)`, one per run.
 
     **Returns:** `(corrections, flags, pit)`: `(R, n)` corrections (mm), `(R,)` counts
     of parts beyond `fixed_gain`'s upper limit, and for `bayes` the `(R, n)` predictive
-    cdf of each part's uncompensated deviation given the parts before (NaN for part 0;
-    `None` for the anchors): the share within $[0.025, 0.975]$ is the coverage of the
-    95 % one-step-ahead predictive intervals.
+    cdf of each measured part's uncompensated deviation given the parts before (NaN
+    for part 0 and parts not measured; `None` for the anchors): the share within
+    $[0.025, 0.975]$ is the coverage of the 95 % one-step-ahead predictive intervals.
     """
     dev = np.asarray(deviations, dtype=float)
     if dev.ndim != 2 or dev.shape[1] < 1 or not np.all(np.isfinite(dev)):
@@ -386,12 +280,15 @@ def replay_runs(
         raise InputError("u must be finite numbers > 0 (mm)")
     tol = _tol(tolerance)
     st = _check_settings(policy, settings)
+    inspected, source = schedule(dev.shape[1], inspect_every, delay)
     if policy == "bayes":
         ds = decision_settings if decision_settings is not None else BAYES_DECISION
-        c, pit = _bayes(dev, uu, declared, tol, ds, st.get("model"),
-                        _transfer(st.get("transfer", 1.0)))  # fmt: skip
+        tr = _transfer(st.get("transfer", 1.0))
+        c, pit = bayes_loop(dev, uu, declared, tol, ds, st.get("model"), tr, inspected,
+                            source, gain)  # fmt: skip
         return c, np.zeros(dev.shape[0], dtype=int), pit
-    c, flags = _anchor(dev, policy, st, 0.5 * (tol[1] - tol[0]), declared)
+    c, flags = anchor_loop(dev, policy, st, 0.5 * (tol[1] - tol[0]), declared, inspected,
+                           source, gain)  # fmt: skip
     return c, flags, None
 
 
@@ -476,10 +373,10 @@ def next_part(
     )  # fmt: skip
     last = float(c_prev[-1])
     mean = tr.next_mean + last
-    st, limit = _loop_settings(ds, tol)
+    st, limit = loop_settings(ds, tol)
     st = replace(st, process_sd=max(ds.process_sd, tr.transfer[0] * scatter))
     d = decide(tolerance=tol, mean=mean, sd=tr.next_sd, settings=st)
-    if _held(last, d.correction, limit):
+    if held(last, d.correction, limit):
         d = replace(
             d, verdict="do not compensate", gain=0.0, correction=0.0, u_correction=0.0,
             blocked=True,

@@ -289,7 +289,8 @@ def _checked(values, u, tool_changes, missing: bool = False):
     if not seen[0]:
         raise InputError("the first part must be measured (it sets the level)")
     if not seen.all():  # u of a part not measured: only its predictive's width uses it
-        uu = np.where(seen, uu, np.nanmedian(np.where(seen, uu, np.nan)))
+        ok = seen | (np.isfinite(uu) & (uu > 0))
+        uu = np.where(ok, uu, np.nanmedian(np.where(seen, uu, np.nan)))
     if not (np.all(np.isfinite(uu)) and np.all(uu > 0)):
         raise InputError("u must be finite numbers > 0 (mm)")
     declared = np.zeros(y.size, dtype=bool)

@@ -93,8 +93,10 @@ def wear_factor(declared, wear_reset) -> np.ndarray:
 
 def _ahead(w, a, d, p11, p12, p22, par, fwear, declared, k, horizon):
     """`(B, horizon)` mean and variance of the level of parts k + 1 .. k + horizon given
-    the components after part k (regular components, declared steps included; as `lm`,
-    `lv`): the prediction through parts without a measurement."""
+    the components after part k (as `lm`, `lv`: the regular components and declared
+    steps; an undeclared step at a part in between adds its prior share of variance,
+    as the filter's mixture does at a part not measured): the prediction through parts
+    without a measurement."""
     b, n = declared.shape
     phi = par.get("drift_decay", np.ones(b))[:, None]
     am = np.full((b, horizon), np.nan)
@@ -104,11 +106,14 @@ def _ahead(w, a, d, p11, p12, p22, par, fwear, declared, k, horizon):
         j = k + h
         f = fwear[:, j : j + 1] if j < n else 1.0
         a, d, p11, p12, p22 = _transition(a, d, p11, p12, p22, f, phi, par)
-        if j < n:
-            step = step + np.where(declared[:, j], par["step2"], 0.0)
+        dec = declared[:, j] if j < n else np.zeros(b, dtype=bool)
         m = np.sum(w * a, 1)
         am[:, h - 1] = m
-        av[:, h - 1] = np.sum(w * (p11 + (a - m[:, None]) ** 2), 1) + step
+        av[:, h - 1] = (
+            np.sum(w * (p11 + (a - m[:, None]) ** 2), 1) + step + np.where(dec, par["step2"], 0.0)
+        )
+        # a part passed without a measurement may have had an undeclared step
+        step = step + np.where(dec, par["step2"], par["p_step"] * par["step2"])
     return am, av
 
 
@@ -240,7 +245,7 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int
         logp = logw_prev[:, :, None] + pri_k[:, None, :]  # prior weights, no data
         logj = (logp + logn).reshape(b, 3 * c_n)
         tot = special.logsumexp(logj, axis=1)
-        out["loglik"][:, k] = np.where(first, 0.0, tot)
+        out["loglik"][:, k] = np.where(first | ~seen, 0.0, tot)
         pw = np.exp(logp - special.logsumexp(logp.reshape(b, -1), 1)[:, None, None])
         if mixture:
             out["pw"][:, k] = pw.reshape(b, -1)
