@@ -169,12 +169,14 @@ class TrackModel:
 
 
 _GRID_SCATTER = (0.3, 0.6, 1.0, 1.6, 2.5, 4.0, 6.5, 10.0, 16.0)  # µm
-_GRID_LEVEL = (0.0, 0.2)  # µm per part
+_GRID_LEVEL = ((0.0, 0.45), (0.2, 0.45), (1.0, 0.1))  # µm per part, prior weight
 _WEAR = 0.3  # µm/part: the scale of a wear rate (half-normal)
-_GRID_DRIFT = (  # (drift0_mean, drift0_sd) µm/part, prior weight
-    ((0.0, 0.0), 1 / 2),  # no drift
-    ((_WEAR * math.sqrt(2 / math.pi), _WEAR * math.sqrt(1 - 2 / math.pi)), 7 / 16),  # wear
-    ((0.0, _WEAR), 1 / 16),  # a drift of either sign (thermal)
+_GRID_DRIFT = (  # (drift0_mean µm/part, drift0_sd µm/part, drift_sd, drift_decay), weight
+    ((0.0, 0.0, 0.0, 1.0), 0.45),  # no drift
+    ((_WEAR * math.sqrt(2 / math.pi), _WEAR * math.sqrt(1 - 2 / math.pi), 0.0, 1.0), 0.35),
+    ((0.0, _WEAR, 0.0, 1.0), 0.05),  # a drift of either sign (thermal)
+    ((1.2, 0.8, 0.05, 0.95), 0.10),  # a new edge: fast wear, slowing
+    ((0.0, 6.0, 0.0, 0.6), 0.05),  # a transient of either sign (warm-up)
 )
 _GRID_ODD = ((0.002, 0.8), (0.05, 0.2))  # (outlier_prob, prior weight)
 _GRID_STEP = ((0.005, 0.5), (0.02, 0.5))  # (step_prob, prior weight)
@@ -187,16 +189,16 @@ def _grid_points():
 def _grid() -> tuple[TrackModel, ...]:
     return tuple(
         TrackModel(
-            level_sd=lv * _UM, drift_sd=0.0, scatter_sd=sc * _UM, drift0_sd=d0 * _UM,
-            drift0_mean=mu * _UM, outlier_prob=po, outlier_scale=40 * _UM, step_prob=ps,
-            step_sd=10 * _UM,
+            level_sd=lv * _UM, drift_sd=dsd * _UM, scatter_sd=sc * _UM, drift0_sd=d0 * _UM,
+            drift0_mean=mu * _UM, drift_decay=phi, outlier_prob=po, outlier_scale=40 * _UM,
+            step_prob=ps, step_sd=10 * _UM,
         )
-        for sc, lv, ((mu, d0), _), (po, _), (ps, _) in _grid_points()
+        for sc, (lv, _), ((mu, d0, dsd, phi), _), (po, _), (ps, _) in _grid_points()
     )  # fmt: skip
 
 
 def _grid_log_prior() -> np.ndarray:
-    w = [wd * wo * ws for _, _, (_, wd), (_, wo), (_, ws) in _grid_points()]
+    w = [wl * wd * wo * ws for _, (_, wl), (_, wd), (_, wo), (_, ws) in _grid_points()]
     lp = np.log(np.asarray(w) / np.sum(w))
     lp.flags.writeable = False
     return lp
@@ -323,7 +325,7 @@ def _params(models, reps: int = 1) -> dict:
     }
 
 
-def run_grid(y, u, declared, models) -> dict:
+def run_grid(y, u, declared, models, **kw) -> dict:
     """The mixture filter (`_tracking_filter`) on every model for a batch of runs.
 
     **Arguments:**
@@ -332,6 +334,7 @@ def run_grid(y, u, declared, models) -> dict:
     - `u`: their standard uncertainties, broadcast to `y` (mm), > 0.
     - `declared`: `(n,)` or `(R, n)` booleans, True at a declared tool change.
     - `models`: G [`TrackModel`][]s.
+    - `kw`: passed to the filter (`ahead`, `mixture`).
 
     **Returns:** the filter's dict with every array shaped `(R, G, ...)`.
     """
@@ -344,6 +347,7 @@ def run_grid(y, u, declared, models) -> dict:
         np.repeat(u**2, g, axis=0),
         _params(models, r_),
         np.repeat(np.broadcast_to(np.atleast_2d(declared), (r_, n)), g, axis=0),
+        **kw,
     )
     return {k: v.reshape((r_, g) + v.shape[1:]) for k, v in out.items()}
 

@@ -127,6 +127,48 @@ def _transition(a, d, p11, p12, p22, f, phi, par):
     return pa, pd, pp11, pp12, pp22
 
 
+def _collapse(lj, mom, c_n, memory):
+    """The components after a measured part: a regular part after none kept apart, the
+    last part odd or the oldest step merge into `base`; a new odd part and a new step
+    each start a component; a step j - 1 parts ago becomes j ago."""
+    base = [0, 1, c_n - 1]
+    merged = [
+        _merge(lj[:, base, 0], *(v[:, base, 0] for v in mom)),
+        _merge(lj[:, :, 1], *(v[:, :, 1] for v in mom)),  # a new odd part
+        _merge(lj[:, :, 2], *(v[:, :, 2] for v in mom)),  # a new step
+    ]
+    out = [np.stack(z, 1) for z in zip(*merged, strict=True)]
+    if memory > 1:  # step j - 1 parts ago, then a regular part: step j ago
+        older = slice(2, c_n - 1)
+        out = [out[0]] + [np.concatenate([x, v[:, older, 0]], 1)
+                          for x, v in zip(out[1:], mom, strict=True)]  # fmt: skip
+        out[0] = np.concatenate([out[0], lj[:, older, 0]], 1)
+    return out
+
+
+def _collapse_unseen(lj, mom, c_n):
+    """The components after a part without a measurement: nothing is judged, so no
+    hypothesis moves on (the odd one waits for the next measurement, a step keeps its
+    count of measurements); a new step joins "a step since the last measurement"."""
+
+    def pick(cs, s_):
+        return [lj[:, cs, s_]] + [v[:, cs, s_] for v in mom]
+
+    def join(*parts):
+        return [np.concatenate(z, 1) for z in zip(*parts, strict=True)]
+
+    merged = [
+        _merge(*pick([0], 0)),
+        _merge(*join(pick([1], 0), pick(slice(None), 1))),  # odd: weight 0 when unseen
+        _merge(*join(pick([2], 0), pick(slice(None), 2))),
+    ]
+    out = [np.stack(z, 1) for z in zip(*merged, strict=True)]
+    if c_n > 3:
+        rest = pick(slice(3, c_n), 0)
+        out = [np.concatenate([x, r], 1) for x, r in zip(out, rest, strict=True)]
+    return out
+
+
 def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int = 0,
                    feed=None, mixture: bool = True):  # fmt: skip
     """Run the collapsed mixture filter on a batch of series.
@@ -271,20 +313,12 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int
         # merge into the components of part k (see the module doc)
         lj = logj.reshape(b, c_n, 3)
         mom = [v.reshape(b, c_n, 3) for v in (ua, ud, u11, u12, u22)]
-        base = [0, 1, c_n - 1]  # regular part after none kept apart, odd, oldest step
-        merged = [
-            _merge(lj[:, base, 0], *(v[:, base, 0] for v in mom)),
-            _merge(lj[:, :, 1], *(v[:, :, 1] for v in mom)),  # a new odd part
-            _merge(lj[:, :, 2], *(v[:, :, 2] for v in mom)),  # a new step
-        ]
-        lt, a, d, p11, p12, p22 = (np.stack(z, 1) for z in zip(*merged, strict=True))
-        if memory > 1:  # step j - 1 parts ago, then a regular part: step j ago
-            older = slice(2, c_n - 1)
-            lt = np.concatenate([lt, lj[:, older, 0]], 1)
-            a, d, p11, p12, p22 = (
-                np.concatenate([x, v[:, older, 0]], 1)
-                for x, v in zip((a, d, p11, p12, p22), mom, strict=True)
-            )
+        lt, a, d, p11, p12, p22 = _collapse(lj, mom, c_n, memory)
+        if not np.all(seen):  # not measured: the hypotheses wait for a measurement
+            alt = _collapse_unseen(lj, mom, c_n)
+            lt, a, d, p11, p12, p22 = (np.where(seen[:, None], x, y_)
+                                       for x, y_ in zip((lt, a, d, p11, p12, p22), alt,
+                                                        strict=True))  # fmt: skip
         w = np.exp(lt - tot[:, None])
         fm = np.sum(w * a, 1)
         fd = np.sum(w * d, 1)
