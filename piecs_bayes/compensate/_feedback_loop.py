@@ -76,6 +76,16 @@ def schedule(n: int, inspect_every: int, delay: int) -> tuple[np.ndarray, np.nda
     return inspected, source
 
 
+def expand_sampled(values, inspect_every: int, extra: int = 0) -> np.ndarray:
+    """The values of every `inspect_every`-th part (parts 0, E, 2E, ...) in production
+    order: NaN at the parts between, and `extra` NaN parts after the last."""
+    v = np.asarray(values, dtype=float)
+    e = int(inspect_every)
+    out = np.full((v.size - 1) * e + 1 + int(extra), np.nan)
+    out[: (v.size - 1) * e + 1 : e] = v
+    return out
+
+
 def _gain(gain, r_) -> np.ndarray:
     g = np.broadcast_to(np.asarray(gain, dtype=float), (r_,)).copy()
     if not np.all(np.isfinite(g)):
@@ -146,6 +156,16 @@ def bayes_loop(dev, u, declared, tolerance, ds, model, transfer, inspected, sour
     return np.concatenate(cs), np.concatenate(pits)
 
 
+def window(am, av, w):
+    """The level over the parts a correction is held for, `(R,)` each: the mean of the
+    grid-averaged predictive means, the mean of their variances and the spread of the
+    means about their mean (`am`, `av` `(R, G, E)`; `w` `(R, G, 1)` grid weights)."""
+    m_i = np.sum(w * am, 1)
+    v_i = np.sum(w * (av + (am - m_i[:, None, :]) ** 2), 1)
+    m = np.mean(m_i, 1)
+    return m, np.mean(v_i, 1), np.mean((m_i - m[:, None]) ** 2, 1)
+
+
 def _bayes_chunk(dev, u, declared, tolerance, ds, model, transfer, inspected, source, g):
     r_, n = dev.shape
     models = HYPER_GRID if model is None else (model,)
@@ -176,13 +196,8 @@ def _bayes_chunk(dev, u, declared, tolerance, ds, model, transfer, inspected, so
     def _decide(out, cum_j, j, d, e, c_prev):
         lw = cum_j + log_prior[None, :]
         w = np.exp(lw - special.logsumexp(lw, axis=1, keepdims=True))[:, :, None]
-        am = out["am"][:, j, d : d + e].reshape(r_, ng, e)
-        av = out["av"][:, j, d : d + e].reshape(r_, ng, e)
-        m_i = np.sum(w * am, 1)
-        v_i = np.sum(w * (av + (am - m_i[:, None, :]) ** 2), 1)
-        m = np.mean(m_i, 1)
-        spread = np.mean((m_i - m[:, None]) ** 2, 1)
-        v = np.mean(v_i, 1)
+        m, v, spread = window(out["am"][:, j, d : d + e].reshape(r_, ng, e),
+                              out["av"][:, j, d : d + e].reshape(r_, ng, e), w)  # fmt: skip
         sd = np.sqrt(beta**2 * v + u_beta**2 * m**2)
         sc2 = (np.sum(w[:, :, 0] * scat2, 1) + spread) * beta**2
         p_sd = np.maximum(ds.process_sd, np.sqrt(sc2))

@@ -181,3 +181,22 @@ def test_the_gain_of_a_correction_moves_the_realised_part():
     # the policy sees r - c = dev - 0.3 c: its correction is not the unit-gain one
     one = replay(dev[0], u[0], policy="ewma", settings={"lam": 0.5}, tolerance=TOL)
     assert not np.allclose(res.corrections, one.corrections)
+
+
+@pytest.mark.parametrize(("every", "delay"), [(5, 0), (5, 1), (1, 2), (3, 1)])
+def test_next_part_is_the_replays_correction_when_the_result_arrives(every, delay):
+    """The measured parts so far (every `every`-th, realised with the replay's
+    corrections) and `applied`: `next_part` gives the correction the replay decides
+    when the last result arrives, for the parts it holds it for."""
+    from piecs_bayes.compensate._feedback import next_part
+
+    dev, u = _runs(seed=8, r=1, n=40)
+    res = replay(dev[0], u[0], policy="bayes", settings={}, tolerance=TOL,
+                 inspect_every=every, delay=delay)  # fmt: skip
+    _, source = schedule(40, every, delay)
+    k = int(np.flatnonzero(source >= 0)[-2])  # a decision with a result before it
+    j = int(source[k])
+    idx = np.arange(0, j + 1, every)
+    nxt = next_part(res.realised[idx], u[0, idx], tolerance=TOL, applied=res.corrections[idx],
+                    inspect_every=every, delay=delay)  # fmt: skip
+    assert nxt["correction"] == pytest.approx(res.corrections[k], abs=1e-7 * UM)
