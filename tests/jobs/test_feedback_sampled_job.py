@@ -94,3 +94,12 @@ def test_rows_say_which_comparison_they_are(sampled):
     assert "ewma (a)" in text and "ewma (b)" in text and "every 3. part measured" in text
     head = sampled.to_dataframe("parts").columns
     assert "realised_ewma_a" in head and "realised_ewma" in head
+
+
+def test_the_report_shows_both_comparisons(sampled):
+    from piecs_bayes.export import feedback_report_html
+
+    page = feedback_report_html(sampled, png={"feedback_tracks": b"", "feedback_policies": b""})
+    for label in ("ewma (a) (µm)", "ewma (b) (µm)", "dewma (a)", "fixed_gain (b)"):
+        assert label in page, label
+    assert "one setting a shop" in page and "tuned on this run" in page
