@@ -3,15 +3,16 @@
 - ``feedback STUDY --out DIR [--finish FILE ...] [--no-figures] [--no-report]``:
   fit every part of the run (production order = the study's probe files), track
   every feature from part to part, replay the feedback policies (``none``, ``full``,
-  ``fixed_gain``, ``mean_value``, ``ewma``, ``dewma``, ``bayes``; the anchors tuned on
-  the run), and write ``feedback.json``, ``feedback_parts.csv``,
+  ``fixed_gain``, ``mean_value``, ``ewma``, ``dewma``, ``bayes``; each anchor in two
+  labelled comparisons: ``(a)`` the machine's one setting, ``compensate.SHOP_SETTINGS``,
+  and ``(b)`` tuned on the run in hindsight), and write ``feedback.json``, ``feedback_parts.csv``,
   ``feedback_policies.csv``, ``feedback_next_part.csv`` (and, with finished parts,
   ``feedback_finish.csv``), the figures and ``feedback_report.html``; the summary
   and the next part's correction are printed.
 
 Settings: the study's ``[feedback]`` table (declared tool changes, policies,
-finished-part files). Errors: bad input exits 2, a failed analysis exits 1 (mapped
-by ``cli.main``).
+finished-part files, ``inspect_every``, ``delay``). Errors: bad input exits 2, a
+failed analysis exits 1 (mapped by ``cli.main``).
 """
 
 from __future__ import annotations
@@ -40,7 +41,9 @@ def register(subparsers) -> None:
     )
     p.epilog = (
         f"example:\n  {EXAMPLE}\n\nSettings: the study's [feedback] table (tool_changes, "
-        "policies, finish_files, characteristic)."
+        "policies, finish_files, characteristic, inspect_every, delay). Anchors are shown "
+        "in two comparisons: (a) one setting for the machine (SHOP_SETTINGS), (b) tuned on "
+        "this run (hindsight)."
     )
     p.add_argument("study", type=Path, help="study file (TOML)")
     p.add_argument(

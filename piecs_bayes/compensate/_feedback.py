@@ -57,6 +57,15 @@ import numpy as np
 
 from ..errors import InputError
 from ._decision import decide
+from ._feedback_loop import (
+    anchor_loop,
+    bayes_loop,
+    expand_sampled,
+    held,
+    loop_settings,
+    schedule,
+    window,
+)  # fmt: skip
 from ._settings import DecisionSettings
 from ._tracking import (
     GRID_LOG_PRIOR,
@@ -66,14 +75,15 @@ from ._tracking import (
     _checked,
     _transfer,
     grid_weights,
-    level_average,
     run_grid,
     track,
-)
-from ._tracking_decide import corrections
+)  # fmt: skip
 
 __all__ = [
     "BAYES_DECISION",
+    "COMPARISONS",
+    "SHOP_SETTINGS",
+    "at_measured",
     "POLICIES",
     "TUNING_GRIDS",
     "PolicyResult",
@@ -113,6 +123,23 @@ TUNING_GRIDS: dict[str, list[dict]] = {
 """Settings tried by `tune` per policy: `fixed_gain` gain $g$, null band and upper limit
 as fractions of the tolerance half-width; `mean_value` window $K$ (parts); `ewma`
 weight $\\lambda$; `dewma` level and drift weights $\\lambda_1, \\lambda_2$."""
+
+SHOP_SETTINGS: dict[str, dict] = {
+    "fixed_gain": {"gain": 0.5, "null_band": 0.0, "upper_limit": 2.0},
+    "mean_value": {"k": 3},
+    "ewma": {"lam": 0.4},
+    "dewma": {"lam1": 0.3, "lam2": 0.05},
+}
+"""One setting per anchor for every run, as a shop tunes a machine once (comparison
+(a) of `benchmarks/bench_feedback.py`): the setting of `TUNING_GRIDS` with the lowest
+mean log RMS over the benchmark's twelve scenarios on its training runs (200 runs per
+scenario, seed 17; other seeds than its test runs)."""
+
+COMPARISONS = {
+    "a": "a: one setting for the machine (SHOP_SETTINGS)",
+    "b": "b: tuned on this run (hindsight)",
+}
+"""The two comparisons a replay of the anchors is read in (see `SHOP_SETTINGS`)."""
 
 
 @dataclass(frozen=True)
@@ -157,52 +184,6 @@ class PolicyResult:
         )
 
 
-# --------------------------------------------------------------------------- anchors
-
-
-def _anchor(dev, policy, st, half, declared):
-    """Corrections `(R, n)` and flags `(R,)` of an anchor policy on runs `dev` `(R, n)`."""
-    r_, n = dev.shape
-    c = np.zeros((r_, n))
-    flags = np.zeros(r_, dtype=int)
-    if policy == "none":
-        return c, flags
-    a = np.zeros(r_)
-    dd = np.zeros(r_)
-    window: list[np.ndarray] = []
-    for k in range(n - 1):
-        real = dev[:, k] + c[:, k]
-        e = dev[:, k]  # = real - c: the uncompensated estimate the policy can form
-        reset = k == 0 or declared[k]
-        if policy == "full":
-            c[:, k + 1] = c[:, k] - real
-        elif policy == "fixed_gain":
-            band, limit = st["null_band"] * half, st["upper_limit"] * half
-            big = np.abs(real) > limit
-            act = (np.abs(real) >= band) & ~big
-            c[:, k + 1] = c[:, k] - np.where(act, st["gain"] * real, 0.0)
-        elif policy == "mean_value":
-            window = [e] if reset else (window + [e])[-int(st["k"]) :]
-            c[:, k + 1] = -np.mean(window, axis=0)
-        elif policy == "ewma":
-            a = e if reset else st["lam"] * e + (1.0 - st["lam"]) * a
-            c[:, k + 1] = -a
-        elif policy == "dewma":
-            if reset:
-                a, dd = e, np.zeros(r_)
-            else:
-                a, dd = (
-                    st["lam1"] * e + (1.0 - st["lam1"]) * a,
-                    st["lam2"] * (e - a) + (1.0 - st["lam2"]) * dd,
-                )
-            c[:, k + 1] = -(a + dd)
-        else:
-            raise InputError(f"unknown policy {policy!r}; expected one of {POLICIES}")
-    if policy == "fixed_gain":  # every part beyond the upper limit, the last one too
-        flags = np.sum(np.abs(dev + c) > st["upper_limit"] * half, axis=1)
-    return c, flags
-
-
 def _check_settings(policy, settings) -> dict:
     if policy not in POLICIES:
         raise InputError(f"unknown policy {policy!r}; expected one of {POLICIES}", value=policy)
@@ -221,60 +202,6 @@ def _check_settings(policy, settings) -> dict:
     return st
 
 
-# --------------------------------------------------------------------------- bayes
-
-
-_CHUNK = 64  # runs filtered at once on the whole grid (memory: about 60 MB)
-_NO_LIMIT = 1e3  # mm: the decision's own limit, applied by the loop instead (`_held`)
-
-
-def _loop_settings(ds: DecisionSettings, tolerance) -> tuple[DecisionSettings, float]:
-    """The decision's settings in the loop (its own limit off) and the limit on one
-    adjustment (`max_correction`, default the tolerance width)."""
-    limit = tolerance[1] - tolerance[0] if ds.max_correction is None else ds.max_correction
-    return replace(ds, max_correction=_NO_LIMIT), float(limit)
-
-
-def _held(c_prev, adjustment, limit):
-    """True where an adjustment is larger than `limit` and does not bring the total
-    correction closer to zero (withheld: investigate first)."""
-    c_prev = np.asarray(c_prev)
-    return (np.abs(adjustment) > limit) & (np.abs(c_prev + adjustment) >= np.abs(c_prev))
-
-
-def _bayes_predictive(dev, u, declared, model, transfer):
-    """Level predictives `(R, n + 1)` mean and sd (column k: given parts < k, scaled by
-    the transfer), the scatter variance `(R, n + 1)` expected under the grid weights
-    and the PIT `(R, n)` of the one-step-ahead predictive of each part."""
-    models = HYPER_GRID if model is None else (model,)
-    scat2 = np.array([m.scatter_sd**2 for m in models])[None, :, None]
-    beta, u_beta = transfer
-    parts = []
-    for i in range(0, dev.shape[0], _CHUNK):
-        out = run_grid(dev[i : i + _CHUNK], u[i : i + _CHUNK], declared, models)
-        wts = grid_weights(out["loglik"], None if model is not None else GRID_LOG_PRIOR)
-        m, v = level_average(out, wts)
-        pit = np.sum(wts[:, :, :-1] * out["pit"], 1)
-        sd = np.sqrt(beta**2 * v + u_beta**2 * m**2)
-        parts.append((beta * m, sd, np.sum(wts * scat2, 1) * beta**2, pit))
-    return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
-
-
-def _bayes(dev, u, declared, tolerance, ds, model, transfer):
-    """Corrections `(R, n)` of the `bayes` policy on runs `dev` `(R, n)`: part by part,
-    the decision's correction (vectorised over runs, `_tracking_decide`); and the PIT
-    `(R, n)` of the one-step-ahead predictives."""
-    r_, n = dev.shape
-    m, sd, sc2, pit = _bayes_predictive(dev, u, declared, model, transfer)
-    ds, limit = _loop_settings(ds, tolerance)
-    c = np.zeros((r_, n))
-    for k in range(1, n):
-        p_sd = np.maximum(ds.process_sd, np.sqrt(sc2[:, k]))
-        adj = corrections(m[:, k] + c[:, k - 1], sd[:, k], p_sd, tolerance, ds)
-        c[:, k] = c[:, k - 1] + np.where(_held(c[:, k - 1], adj, limit), 0.0, adj)
-    return c, pit
-
-
 # --------------------------------------------------------------------------- public
 
 
@@ -288,8 +215,8 @@ def _tol(tolerance) -> tuple[float, float]:
     return lo, hi
 
 
-def _result(name, st, c, dev, tol, flags, half) -> PolicyResult:
-    real = dev + c
+def _result(name, st, c, dev, tol, flags, half, gain=1.0) -> PolicyResult:
+    real = dev + gain * c
     lo, hi = tol
     shown = dict(st)
     if name == "fixed_gain":
@@ -299,14 +226,15 @@ def _result(name, st, c, dev, tol, flags, half) -> PolicyResult:
         shown["model"] = shown["model"].as_dict()
     c.flags.writeable = False
     real.flags.writeable = False
+    fin = real[np.isfinite(real)]  # a part not measured whose deviation is not known
     return PolicyResult(
         name=name,
         settings=shown,
         corrections=c,
         realised=real,
-        rmsd_mm=float(np.sqrt(np.mean(real**2))),
-        max_abs_mm=float(np.max(np.abs(real))),
-        out_of_tolerance=int(np.sum((real < lo) | (real > hi))),
+        rmsd_mm=float(np.sqrt(np.mean(fin**2))),
+        max_abs_mm=float(np.max(np.abs(fin))),
+        out_of_tolerance=int(np.sum((fin < lo) | (fin > hi))),
         adjustments=int(np.sum(np.diff(c) != 0.0)) if c.size > 1 else 0,
         flags=int(flags),
     )
@@ -321,6 +249,9 @@ def replay(
     tolerance: tuple[float, float],
     tool_changes=(),
     decision_settings: DecisionSettings | None = None,
+    inspect_every: int = 1,
+    delay: int = 0,
+    gain: float = 1.0,
 ) -> PolicyResult:
     """Replay one policy over a run on the counterfactual of the module doc.
 
@@ -336,24 +267,22 @@ def replay(
     - `tool_changes`: indices of the parts cut with a new tool.
     - `decision_settings`: the one-part decision's settings for `bayes`
       (default `BAYES_DECISION`).
+    - `inspect_every`, `delay`, `gain`: the loop as the shop runs it (`_feedback_loop`):
+      every `inspect_every`-th part measured (from part 0), results `delay` parts
+      late, the correction acting at `gain` times its size (the policies assume 1).
 
-    **Returns:** a [`PolicyResult`][].
+    **Returns:** a [`PolicyResult`][] (`realised` $= \\delta_k + \\gamma c_k$).
     """
-    dev, uu, declared = _checked(deviation, u, tool_changes)
+    dev, uu, declared = _checked(deviation, u, tool_changes, missing=True)
+    c, flags, _ = replay_runs(
+        dev[None], uu[None], policy=policy, settings=settings, tolerance=tolerance,
+        tool_changes=tool_changes, decision_settings=decision_settings,
+        inspect_every=inspect_every, delay=delay, gain=gain,
+    )  # fmt: skip
     tol = _tol(tolerance)
     st = _check_settings(policy, settings)
     half = 0.5 * (tol[1] - tol[0])
-    if policy == "bayes":
-        ds = decision_settings if decision_settings is not None else BAYES_DECISION
-        c = _bayes(
-            dev[None], uu[None], declared, tol, ds, st.get("model"),
-            _transfer(st.get("transfer", 1.0)),
-        )[0][0]  # fmt: skip
-        flags = 0
-    else:
-        c, flags = _anchor(dev[None], policy, st, half, declared)
-        c, flags = c[0], flags[0]
-    return _result(policy, st, c, dev, tol, flags, half)
+    return _result(policy, st, c[0], dev, tol, flags[0], half, gain)
 
 
 def replay_runs(
@@ -365,37 +294,49 @@ def replay_runs(
     tolerance: tuple[float, float],
     tool_changes=(),
     decision_settings: DecisionSettings | None = None,
+    inspect_every: int = 1,
+    delay: int = 0,
+    gain=1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """[`replay`][] of one policy over many runs at once (for benchmarks).
 
     **Arguments:** as for [`replay`][], with `deviations` and `u` shaped `(R, n)`
-    (`u` broadcast) and the same declared tool changes for every run.
+    (`u` broadcast), the same declared tool changes for every run and `gain` one
+    number or `(R,)`, one per run.
 
     **Returns:** `(corrections, flags, pit)`: `(R, n)` corrections (mm), `(R,)` counts
     of parts beyond `fixed_gain`'s upper limit, and for `bayes` the `(R, n)` predictive
-    cdf of each part's uncompensated deviation given the parts before (NaN for part 0;
-    `None` for the anchors): the share within $[0.025, 0.975]$ is the coverage of the
-    95 % one-step-ahead predictive intervals.
+    cdf of each measured part's uncompensated deviation given the parts before (NaN
+    for part 0 and parts not measured; `None` for the anchors): the share within
+    $[0.025, 0.975]$ is the coverage of the 95 % one-step-ahead predictive intervals.
     """
     dev = np.asarray(deviations, dtype=float)
-    if dev.ndim != 2 or dev.shape[1] < 1 or not np.all(np.isfinite(dev)):
-        raise InputError(f"deviations must be a finite (runs, parts) array, got {dev.shape}")
+    if dev.ndim != 2 or dev.shape[1] < 1:
+        raise InputError(f"deviations must be a (runs, parts) array, got {dev.shape}")
+    inspected, source = schedule(dev.shape[1], inspect_every, delay)
+    if not np.all(np.isfinite(dev[:, inspected])):
+        raise InputError("deviations must be finite at the measured parts (NaN only at "
+                         "parts not measured)")  # fmt: skip
     uu = np.broadcast_to(np.asarray(u, dtype=float), dev.shape)
-    _, _, declared = _checked(dev[0], uu[0], tool_changes)
-    if not (np.all(np.isfinite(uu)) and np.all(uu > 0)):
+    _, _, declared = _checked(dev[0], uu[0], tool_changes, missing=True)
+    if not (np.all(np.isfinite(uu[:, inspected])) and np.all(uu[:, inspected] > 0)):
         raise InputError("u must be finite numbers > 0 (mm)")
+    uu = np.where(inspected, uu, np.nanmax(uu[:, inspected]))  # not used: not measured
     tol = _tol(tolerance)
     st = _check_settings(policy, settings)
     if policy == "bayes":
         ds = decision_settings if decision_settings is not None else BAYES_DECISION
-        c, pit = _bayes(dev, uu, declared, tol, ds, st.get("model"),
-                        _transfer(st.get("transfer", 1.0)))  # fmt: skip
+        tr = _transfer(st.get("transfer", 1.0))
+        c, pit = bayes_loop(dev, uu, declared, tol, ds, st.get("model"), tr, inspected,
+                            source, gain)  # fmt: skip
         return c, np.zeros(dev.shape[0], dtype=int), pit
-    c, flags = _anchor(dev, policy, st, 0.5 * (tol[1] - tol[0]), declared)
+    c, flags = anchor_loop(dev, policy, st, 0.5 * (tol[1] - tol[0]), declared, inspected,
+                           source, gain)  # fmt: skip
     return c, flags, None
 
 
-def tune(deviation, u, *, policy: str, tolerance, tool_changes=()) -> PolicyResult:
+def tune(deviation, u, *, policy: str, tolerance, tool_changes=(), inspect_every: int = 1,
+         delay: int = 0) -> PolicyResult:  # fmt: skip
     """The best setting of `TUNING_GRIDS[policy]` on this run (lowest RMS deviation).
 
     **Arguments:** as for [`replay`][] (`bayes` is replayed with its fixed settings).
@@ -405,10 +346,37 @@ def tune(deviation, u, *, policy: str, tolerance, tool_changes=()) -> PolicyResu
     best = None
     for st in TUNING_GRIDS.get(policy, [{}]):
         res = replay(deviation, u, policy=policy, settings=st, tolerance=tolerance,
-                     tool_changes=tool_changes)  # fmt: skip
+                     tool_changes=tool_changes, inspect_every=inspect_every,
+                     delay=delay)  # fmt: skip
         if best is None or res.rmsd_mm < best.rmsd_mm:
             best = res
     return best
+
+
+def at_measured(result, idx):
+    """A [`Track`][] or [`PolicyResult`][] of a run in production order, at the measured
+    parts `idx` only (sampled inspection): its per-part arrays indexed by `idx`; a
+    track's steps and tool changes moved to the first measured part at or after them."""
+    idx = np.asarray(idx, dtype=int)
+    if isinstance(result, PolicyResult):
+        return replace(result, corrections=_ro(result.corrections[idx]),
+                       realised=_ro(result.realised[idx]))  # fmt: skip
+    arrays = ("pred_mean", "pred_sd", "pred_lo", "pred_hi", "pred_weights", "pred_means",
+              "pred_sds", "level", "level_sd", "smooth_level", "smooth_level_sd",
+              "p_outlier", "p_step")  # fmt: skip
+
+    def moved(ks):
+        return tuple(sorted({int(np.searchsorted(idx, k)) for k in ks if k <= idx[-1]}))
+
+    kw = {a: _ro(getattr(result, a)[idx]) for a in arrays}
+    return replace(result, steps=moved(result.steps), tool_changes=moved(result.tool_changes),
+                   **kw)  # fmt: skip
+
+
+def _ro(a) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
 
 
 def predictive_coverage(track_: Track, values, p: float = 0.95) -> float:
@@ -433,6 +401,19 @@ def predictive_coverage(track_: Track, values, p: float = 0.95) -> float:
     return float(np.mean(inside))
 
 
+def _window(z, uz, changes, model, dly, e) -> tuple[float, float, float]:
+    """`window` of `_feedback_loop` after the last part of `z` (production order)."""
+    models = HYPER_GRID if model is None else (model,)
+    declared = np.zeros(z.size, dtype=bool)
+    declared[list(changes)] = True
+    out = run_grid(z, uz, declared, models, ahead=dly + e, mixture=False)
+    lp = GRID_LOG_PRIOR if model is None else None
+    w = grid_weights(out["loglik"], lp)[:, :, -1:]
+    j = z.size - 1
+    m, v, spread = window(out["am"][:, :, j, dly:], out["av"][:, :, j, dly:], w)
+    return float(m[0]), float(v[0]), float(spread[0])
+
+
 def next_part(
     values,
     u,
@@ -443,6 +424,8 @@ def next_part(
     model: TrackModel | None = None,
     applied=None,
     transfer=1.0,
+    inspect_every: int = 1,
+    delay: int = 0,
 ) -> dict:
     """The `bayes` correction for the next part of a run.
 
@@ -457,6 +440,12 @@ def next_part(
     - `applied`: `(n,)` corrections the parts were cut with (default 0): the model
       tracks `values - applied`.
     - `transfer`: $\\beta$ or $(\\beta, u_\\beta)$ (see `track`).
+    - `inspect_every`, `delay`: the values are every `inspect_every`-th part of the run
+      (production parts $0, E, 2E, \\dots$; `tool_changes` and `applied` index them)
+      and a result arrives `delay` parts late: the correction is the one for the next
+      part to be cut after the last result, part $(n - 1)E + 1 + D$, held for $E$ parts
+      (the level handed to the decision is the mean over those parts; their spread
+      adds to the scatter), as the `bayes` replay decides it.
 
     **Returns:** a dict: `correction` (mm, the total correction for the next part),
     `adjustment` (its change from the last part's), `u` (its standard uncertainty, the
@@ -469,17 +458,33 @@ def next_part(
     c_prev = np.zeros(y.size) if applied is None else np.asarray(applied, dtype=float)
     if c_prev.shape != y.shape or not np.all(np.isfinite(c_prev)):
         raise InputError("applied must be finite corrections, one per part")
-    tr = track(y - c_prev, uu, model=model, tool_changes=tool_changes, transfer=transfer)
+    schedule(1, inspect_every, delay)  # checks them
+    e, dly = int(inspect_every), int(delay)
+    sampled = e > 1 or dly > 0
+    z, uz, changes = y - c_prev, uu, tuple(tool_changes)
+    if sampled:  # production order: NaN at the parts not measured
+        z, uz = expand_sampled(z, e), expand_sampled(uu, e)
+        changes = tuple(int(t) * e for t in np.flatnonzero(declared))
+    tr = track(z, uz, model=model, tool_changes=changes, transfer=transfer)
     ds = decision_settings if decision_settings is not None else BAYES_DECISION
     scatter = tr.model.scatter_sd if tr.weights is None else math.sqrt(
         float(np.sum(tr.weights * np.array([m.scatter_sd**2 for m in HYPER_GRID])))
     )  # fmt: skip
     last = float(c_prev[-1])
-    mean = tr.next_mean + last
-    st, limit = _loop_settings(ds, tol)
-    st = replace(st, process_sd=max(ds.process_sd, tr.transfer[0] * scatter))
-    d = decide(tolerance=tol, mean=mean, sd=tr.next_sd, settings=st)
-    if _held(last, d.correction, limit):
+    beta, u_beta = tr.transfer
+    if sampled:  # the level over the parts the correction is held for, as the replay
+        m_l, v_l, spread = _window(z, uz, changes, model, dly, e)
+        mean_level = beta * m_l
+        next_sd = math.sqrt(beta**2 * v_l + u_beta**2 * m_l**2)
+        spread *= beta**2
+    else:
+        mean_level, spread, next_sd = tr.next_mean, 0.0, tr.next_sd
+    mean = mean_level + last
+    st, limit = loop_settings(ds, tol)
+    p_sd = math.sqrt((beta * scatter) ** 2 + spread)
+    st = replace(st, process_sd=max(ds.process_sd, p_sd))
+    d = decide(tolerance=tol, mean=mean, sd=next_sd, settings=st)
+    if held(last, d.correction, limit):
         d = replace(
             d, verdict="do not compensate", gain=0.0, correction=0.0, u_correction=0.0,
             blocked=True,
@@ -490,9 +495,9 @@ def next_part(
     return {
         "correction": last + d.correction,
         "adjustment": d.correction,
-        "u": tr.next_sd,
+        "u": next_sd,
         "mean": mean,
-        "sd": tr.next_sd,
+        "sd": next_sd,
         "model": tr.model,
         "decision": d,
         "track": tr,

@@ -57,12 +57,11 @@ STEP_MEMORY = 6
 """Parts an undeclared step's hypothesis is kept apart (with hindsight) before merging."""
 
 
-def _log_prior(p_odd, p_step, declared):
-    """`(..., n, 3)` log prior of the indicators (zero probabilities floored at 1e-300)."""
-    p_odd = np.asarray(p_odd)[..., None]
-    p_step = np.where(declared, 0.0, np.asarray(p_step)[..., None])
-    pri = np.stack(np.broadcast_arrays(1.0 - p_odd - p_step, p_odd + 0.0 * p_step, p_step), -1)
-    return np.log(np.maximum(pri, _TINY))
+def _prior_k(p_odd, p_step, declared):
+    """`(B, 3)` prior of part k's indicator (regular, odd, undeclared step); no
+    undeclared step at a declared change."""
+    p_step = np.where(declared, 0.0, np.asarray(p_step))
+    return np.stack([1.0 - p_odd - p_step, p_odd + 0.0 * p_step, p_step], -1)
 
 
 def _merge(logw, *moments):
@@ -92,12 +91,95 @@ def wear_factor(declared, wear_reset) -> np.ndarray:
     return np.where(declared, 1.0 - rho * since, 1.0)
 
 
-def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY):
+def _ahead(w, a, d, p11, p12, p22, par, fwear, declared, k, horizon):
+    """`(B, horizon)` mean and variance of the level of parts k + 1 .. k + horizon given
+    the components after part k (as `lm`, `lv`: the regular components and declared
+    steps; an undeclared step at a part in between adds its prior share of variance,
+    as the filter's mixture does at a part not measured): the prediction through parts
+    without a measurement."""
+    b, n = declared.shape
+    phi = par.get("drift_decay", np.ones(b))[:, None]
+    am = np.full((b, horizon), np.nan)
+    av = np.full((b, horizon), np.nan)
+    step = np.zeros(b)
+    for h in range(1, horizon + 1):
+        j = k + h
+        f = fwear[:, j : j + 1] if j < n else 1.0
+        a, d, p11, p12, p22 = _transition(a, d, p11, p12, p22, f, phi, par)
+        dec = declared[:, j] if j < n else np.zeros(b, dtype=bool)
+        m = np.sum(w * a, 1)
+        am[:, h - 1] = m
+        av[:, h - 1] = (
+            np.sum(w * (p11 + (a - m[:, None]) ** 2), 1) + step + np.where(dec, par["step2"], 0.0)
+        )
+        # a part passed without a measurement may have had an undeclared step
+        step = step + np.where(dec, par["step2"], par["p_step"] * par["step2"])
+    return am, av
+
+
+def _transition(a, d, p11, p12, p22, f, phi, par):
+    """One part's transition of components: $\\ell' = \\ell + f d$, $d' = \\phi d$
+    (`drift_decay`), the level and drift walks added."""
+    pa, pd = a + f * d, phi * d
+    pp11 = p11 + 2.0 * f * p12 + f * f * p22 + par["q_level"][:, None]
+    pp12 = phi * (p12 + f * p22)
+    pp22 = phi * phi * p22 + par["q_drift"][:, None]
+    return pa, pd, pp11, pp12, pp22
+
+
+def _collapse(lj, mom, c_n, memory):
+    """The components after a measured part: a regular part after none kept apart, the
+    last part odd or the oldest step merge into `base`; a new odd part and a new step
+    each start a component; a step j - 1 parts ago becomes j ago."""
+    base = [0, 1, c_n - 1]
+    merged = [
+        _merge(lj[:, base, 0], *(v[:, base, 0] for v in mom)),
+        _merge(lj[:, :, 1], *(v[:, :, 1] for v in mom)),  # a new odd part
+        _merge(lj[:, :, 2], *(v[:, :, 2] for v in mom)),  # a new step
+    ]
+    out = [np.stack(z, 1) for z in zip(*merged, strict=True)]
+    if memory > 1:  # step j - 1 parts ago, then a regular part: step j ago
+        older = slice(2, c_n - 1)
+        out = [out[0]] + [np.concatenate([x, v[:, older, 0]], 1)
+                          for x, v in zip(out[1:], mom, strict=True)]  # fmt: skip
+        out[0] = np.concatenate([out[0], lj[:, older, 0]], 1)
+    return out
+
+
+def _collapse_unseen(lj, mom, c_n):
+    """The components after a part without a measurement: nothing is judged, so no
+    hypothesis moves on (the odd one waits for the next measurement, a step keeps its
+    count of measurements); a new step joins "a step since the last measurement"."""
+
+    def pick(cs, s_):
+        return [lj[:, cs, s_]] + [v[:, cs, s_] for v in mom]
+
+    def join(*parts):
+        return [np.concatenate(z, 1) for z in zip(*parts, strict=True)]
+
+    merged = [
+        _merge(*pick([0], 0)),
+        _merge(*join(pick([1], 0), pick(slice(None), 1))),  # odd: weight 0 when unseen
+        _merge(*join(pick([2], 0), pick(slice(None), 2))),
+    ]
+    out = [np.stack(z, 1) for z in zip(*merged, strict=True)]
+    if c_n > 3:
+        rest = pick(slice(3, c_n), 0)
+        out = [np.concatenate([x, r], 1) for x, r in zip(out, rest, strict=True)]
+    return out
+
+
+def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int = 0,
+                   feed=None, mixture: bool = True):  # fmt: skip
     """Run the collapsed mixture filter on a batch of series.
+
+    A part without a measurement (`y` NaN) is a prediction step only: no likelihood, no
+    update, no odd-part indicator (a step may still happen there).
 
     **Arguments:**
 
-    - `y`: `(B, n)` observed values (mm).
+    - `y`: `(B, n)` observed values (mm); NaN: the part was not measured (part 0 must
+      be measured when its level is diffuse).
     - `r`: `(B, n)` measurement variances $u_k^2$ (mm$^2$), all > 0.
     - `par`: dict of `(B,)` arrays: `scatter2`, `q_level`, `q_drift`, `drift0`,
       `step2`, `p_step`, `p_odd`, `odd2` (variances in mm$^2$), `level0` (prior
@@ -105,6 +187,13 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY):
       and `wear_reset`.
     - `declared`: `(B, n)` or `(n,)` booleans, True at a declared tool change.
     - `memory`: `STEP_MEMORY` (1: GPB2).
+    - `ahead`: H > 0 adds `am`, `av` `(B, n, H)`: the level of parts k + 1 .. k + H
+      given parts <= k (for a measurement that arrives late, and a correction held
+      over several parts).
+    - `feed`: `feed(k, out) -> (B,)` values of part k, called before part k is used
+      (a closed loop: the value depends on the correction decided from `out` so far);
+      `y` is then only the shape (and the values not fed).
+    - `mixture`: False skips the predictive mixture `pw`, `pm`, `ps` (memory).
 
     **Returns:** a dict of arrays: `loglik` `(B, n)` (log predictive density of each part;
     0 for a diffuse part 0), `pw`, `pm`, `ps` `(B, n, 3C)` (weights, means and sds of the
@@ -119,28 +208,34 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY):
     given the parts up to it; both filtered at the end of the run; regular the rest),
     `next_m`, `next_v` `(B,)` (level predictive for part n).
     """
-    y = np.asarray(y, dtype=float)
+    y = np.array(y, dtype=float)
     r = np.asarray(r, dtype=float)
     b, n = y.shape
     c_n = memory + 2
     declared = np.broadcast_to(np.asarray(declared, dtype=bool), (b, n))
     fwear = wear_factor(declared, par.get("wear_reset", np.zeros(b)))
+    phi = par.get("drift_decay", np.ones(b))[:, None]
     scatter2 = par["scatter2"][:, None]
-    q_level = par["q_level"][:, None]
-    q_drift = par["q_drift"][:, None]
     step2 = par["step2"][:, None]
     odd2 = par["odd2"][:, None]
     level0 = par["level0"]
     diffuse = ~np.isfinite(level0)
-    logpri = _log_prior(par["p_odd"], par["p_step"], declared)  # (B, n, 3)
+    p_odd = np.asarray(par["p_odd"])[:, None] * np.ones(n)
+    if feed is None:
+        p_odd = np.where(np.isnan(y), 0.0, p_odd)
+        if np.any(diffuse & np.isnan(y[:, 0])):
+            raise ValueError("part 0 must be measured when the first level is diffuse")
     s_odd = np.array([0.0, 1.0, 0.0])
     s_step = np.array([0.0, 0.0, 1.0])
 
     out = {
         k: np.full((b, n), np.nan) for k in ("loglik", "lm", "lv", "fm", "fv", "fd", "fdv", "pit")
     }
-    for k in ("pw", "pm", "ps"):
+    for k in ("pw", "pm", "ps") if mixture else ():
         out[k] = np.full((b, n, 3 * c_n), np.nan)
+    if ahead:
+        out["am"] = np.full((b, n, ahead), np.nan)
+        out["av"] = np.full((b, n, ahead), np.nan)
     out["p_filt"] = np.full((b, n, 3), np.nan)
     p_odd_lag = np.full((b, n), np.nan)
     p_step_lag = np.full((b, n), np.nan)
@@ -155,15 +250,18 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY):
     p12 = np.zeros((b, c_n))
     p22 = np.tile(par["drift0"][:, None], (1, c_n))
     for k in range(n):
+        if feed is not None:
+            y[:, k] = feed(k, out)
+        seen = np.isfinite(y[:, k])  # (B,): part k measured
+        pri_k = np.log(np.maximum(_prior_k(np.where(seen, p_odd[:, k], 0.0), par["p_step"],
+                                           declared[:, k]), _TINY))  # fmt: skip
         qadd = np.where(declared[:, k : k + 1], 1.0, s_step[None, :]) * step2  # (B, 3) by s_k
         rk = r[:, k : k + 1] + scatter2 + s_odd[None, :] * odd2  # (B, 3) by s_k
         if k == 0:
             pa, pd, pp11, pp12, pp22 = a, d, p11, p12, p22
         else:
-            f = fwear[:, k : k + 1]
-            pa, pd = a + f * d, d
-            pp11 = p11 + 2.0 * f * p12 + f * f * p22 + q_level
-            pp12, pp22 = p12 + f * p22, p22 + q_drift
+            pa, pd, pp11, pp12, pp22 = _transition(a, d, p11, p12, p22, fwear[:, k : k + 1],
+                                                   phi, par)  # fmt: skip
         # level predictive for part k (before its indicator): declared step included
         dec = np.where(declared[:, k], step2[:, 0], 0.0)
         lm = np.sum(w * pa, 1)
@@ -178,31 +276,33 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY):
         ea = np.broadcast_to(pa[:, :, None], e11.shape)
         ed = np.broadcast_to(pd[:, :, None], e11.shape)
         rr = np.broadcast_to(rk[:, None, :], e11.shape)
-        yk = y[:, k][:, None, None]
+        sn = seen[:, None, None]
+        yk = np.where(seen, y[:, k], 0.0)[:, None, None]
         with np.errstate(divide="ignore"):
             logw_prev = np.log(np.maximum(w, _TINY))
         s = e11 + rr
-        innov = yk - ea
+        innov = np.where(sn, yk - ea, 0.0)
         logn = -0.5 * (_LOG2PI + np.log(s) + innov**2 / s)
-        logn = np.where(first[:, None, None], 0.0, logn)
-        logp = logw_prev[:, :, None] + logpri[:, k][:, None, :]  # prior weights, no data
+        logn = np.where(first[:, None, None] | ~sn, 0.0, logn)
+        logp = logw_prev[:, :, None] + pri_k[:, None, :]  # prior weights, no data
         logj = (logp + logn).reshape(b, 3 * c_n)
         tot = special.logsumexp(logj, axis=1)
-        out["loglik"][:, k] = np.where(first, 0.0, tot)
+        out["loglik"][:, k] = np.where(first | ~seen, 0.0, tot)
         pw = np.exp(logp - special.logsumexp(logp.reshape(b, -1), 1)[:, None, None])
-        out["pw"][:, k] = pw.reshape(b, -1)
-        out["pm"][:, k] = np.where(first[:, None], np.nan, ea.reshape(b, -1))
-        out["ps"][:, k] = np.where(first[:, None], np.nan, np.sqrt(s).reshape(b, -1))
+        if mixture:
+            out["pw"][:, k] = pw.reshape(b, -1)
+            out["pm"][:, k] = np.where(first[:, None], np.nan, ea.reshape(b, -1))
+            out["ps"][:, k] = np.where(first[:, None], np.nan, np.sqrt(s).reshape(b, -1))
         pit = np.sum(pw * special.ndtr(innov / np.sqrt(s)), axis=(1, 2))
-        out["pit"][:, k] = np.where(first, np.nan, pit)
+        out["pit"][:, k] = np.where(first | ~seen, np.nan, pit)
         # update every (component, indicator) pair
-        k1, k2 = e11 / s, e12 / s
+        k1, k2 = np.where(sn, e11 / s, 0.0), np.where(sn, e12 / s, 0.0)
         fd_ = first[:, None, None]
         ua = np.where(fd_, yk, ea + k1 * innov).reshape(b, -1)
         ud = np.where(fd_, ed, ed + k2 * innov).reshape(b, -1)
-        u11 = np.where(fd_, rr, e11 * rr / s).reshape(b, -1)
-        u12 = np.where(fd_, 0.0, e12 * rr / s).reshape(b, -1)
-        u22 = np.where(fd_, e22, e22 - e12 * e12 / s).reshape(b, -1)
+        u11 = np.where(fd_, rr, e11 - k1 * e11).reshape(b, -1)
+        u12 = np.where(fd_, 0.0, e12 - k1 * e12).reshape(b, -1)
+        u22 = np.where(fd_, e22, e22 - k2 * e12).reshape(b, -1)
         post = np.exp(logj - tot[:, None]).reshape(b, c_n, 3)
         out["p_filt"][:, k] = post.sum(1)
         if k > 0:  # part k - 1 odd; a step at part k - j (carried as "step j - 1 ago")
@@ -213,20 +313,12 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY):
         # merge into the components of part k (see the module doc)
         lj = logj.reshape(b, c_n, 3)
         mom = [v.reshape(b, c_n, 3) for v in (ua, ud, u11, u12, u22)]
-        base = [0, 1, c_n - 1]  # regular part after none kept apart, odd, oldest step
-        merged = [
-            _merge(lj[:, base, 0], *(v[:, base, 0] for v in mom)),
-            _merge(lj[:, :, 1], *(v[:, :, 1] for v in mom)),  # a new odd part
-            _merge(lj[:, :, 2], *(v[:, :, 2] for v in mom)),  # a new step
-        ]
-        lt, a, d, p11, p12, p22 = (np.stack(z, 1) for z in zip(*merged, strict=True))
-        if memory > 1:  # step j - 1 parts ago, then a regular part: step j ago
-            older = slice(2, c_n - 1)
-            lt = np.concatenate([lt, lj[:, older, 0]], 1)
-            a, d, p11, p12, p22 = (
-                np.concatenate([x, v[:, older, 0]], 1)
-                for x, v in zip((a, d, p11, p12, p22), mom, strict=True)
-            )
+        lt, a, d, p11, p12, p22 = _collapse(lj, mom, c_n, memory)
+        if not np.all(seen):  # not measured: the hypotheses wait for a measurement
+            alt = _collapse_unseen(lj, mom, c_n)
+            lt, a, d, p11, p12, p22 = (np.where(seen[:, None], x, y_)
+                                       for x, y_ in zip((lt, a, d, p11, p12, p22), alt,
+                                                        strict=True))  # fmt: skip
         w = np.exp(lt - tot[:, None])
         fm = np.sum(w * a, 1)
         fd = np.sum(w * d, 1)
@@ -234,13 +326,16 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY):
         out["fv"][:, k] = np.sum(w * (p11 + (a - fm[:, None]) ** 2), 1)
         out["fd"][:, k] = fd
         out["fdv"][:, k] = np.sum(w * (p22 + (d - fd[:, None]) ** 2), 1)
+        if ahead:
+            out["am"][:, k], out["av"][:, k] = _ahead(
+                w, a, d, p11, p12, p22, par, fwear, declared, k, ahead
+            )
     p_odd_lag[:, n - 1] = out["p_filt"][:, n - 1, 1]
     p_step_lag[:, n - 1] = out["p_filt"][:, n - 1, 2]
     p_step_lag = np.minimum(p_step_lag, 1.0 - p_odd_lag)
     out["p_lag"] = np.stack([1.0 - p_odd_lag - p_step_lag, p_odd_lag, p_step_lag], -1)
-    na = a + d
+    na, _, n11, _, _ = _transition(a, d, p11, p12, p22, 1.0, phi, par)
     nm = np.sum(w * na, 1)
-    n11 = p11 + 2.0 * p12 + p22 + q_level
     out["next_m"] = nm
     out["next_v"] = np.sum(w * (n11 + (na - nm[:, None]) ** 2), 1)
     return out
@@ -254,7 +349,8 @@ def smoother(y, r, par, declared, p_odd, p_step):
     $p_{s,k}\\sigma_s^2$ ($\\sigma_s^2$ and the wear restart at a declared change): exact
     when the probabilities are 0 or 1 (a Gaussian model, or indicators known).
 
-    **Arguments:** `y`, `r`, `par`, `declared` as for [`mixture_filter`][];
+    **Arguments:** `y` (NaN: not measured), `r`, `par`, `declared` as for
+    [`mixture_filter`][];
     `p_odd`, `p_step`: `(B, n)` indicator probabilities.
 
     **Returns:** `(mean, var)` `(B, n)` of the smoothed level.
@@ -276,8 +372,11 @@ def smoother(y, r, par, declared, p_odd, p_step):
     p[:, 0, 0] = np.where(diffuse, 0.0, par["level0"])
     p[:, 1, 1] = par["drift0"]
     tr = np.zeros((b, n, 2, 2))  # transition into part k
-    tr[:, :, 0, 0] = tr[:, :, 1, 1] = 1.0
+    tr[:, :, 0, 0] = 1.0
+    tr[:, :, 1, 1] = par.get("drift_decay", np.ones(b))[:, None]
     tr[:, :, 0, 1] = fwear
+    seen = np.isfinite(y)
+    y = np.where(seen, y, 0.0)
     for k in range(n):
         if k > 0:
             m = np.einsum("bij,bj->bi", tr[:, k], m)
@@ -286,7 +385,7 @@ def smoother(y, r, par, declared, p_odd, p_step):
             p[:, 1, 1] += par["q_drift"]
         pa[:, k], pp[:, k] = m, p
         s = p[:, 0, 0] + reff[:, k]
-        gain = p[:, :, 0] / s[:, None]
+        gain = np.where(seen[:, k : k + 1], p[:, :, 0] / s[:, None], 0.0)  # none: predict
         m = m + gain * (y[:, k] - m[:, 0])[:, None]
         p = p - gain[:, :, None] * p[:, 0, :][:, None, :]
         if k == 0:

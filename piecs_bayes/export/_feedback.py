@@ -114,15 +114,23 @@ def _um(x: float, signed: bool = False) -> str:
 def feedback_text(res) -> str:
     """A fixed-width summary: RMS per policy and feature (µm of δ), the steps, the
     coverage and the next part's correction (as drawn and as δ)."""
+    from ..jobs import feedback_policy_label
+
     names = list(res.policies)
-    w = max(8, *(len(n) for n in names))
-    head = f"{'feature':<10}" + "".join(f"{n:>{w + 1}}" for n in names)
+    labels = [feedback_policy_label(n) for n in names]
+    w = max(8, *(len(n) for n in labels))
+    head = f"{'feature':<10}" + "".join(f"{n:>{w + 1}}" for n in labels)
+    loop = getattr(res, "inspect_every", 1), getattr(res, "delay", 0)
     lines = [
         f"Feedback over {len(res.parts)} parts of {res.study!r} (fits {res.method}, "
-        f"at {res.characteristic}; replayed on {res.replayed_on} deviations)",
-        "RMS realised deviation per policy (µm of the normal deviation; anchors tuned):",
+        f"at {res.characteristic}; replayed on {res.replayed_on} deviations)"
+        + ("" if loop == (1, 0) else f"; every {loop[0]}. part measured, results "
+           f"{loop[1]} part(s) late"),
+        "RMS realised deviation per policy (µm of the normal deviation). Anchors in two "
+        "comparisons: (a) one setting for the machine (SHOP_SETTINGS), (b) tuned on this "
+        "run (hindsight):",
         head,
-    ]
+    ]  # fmt: skip
     for f in res.features.values():
         lines.append(f"{f.feature:<10}" + "".join(
             f"{_um(f.policies[n].rmsd_mm):>{w + 1}}" for n in names))  # fmt: skip

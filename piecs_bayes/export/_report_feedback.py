@@ -8,6 +8,7 @@ from __future__ import annotations
 import html
 import math
 
+from ..jobs import feedback_policy_label
 from ._figures import RC
 from ._figures_feedback import feedback_policy_figure, feedback_track_figure
 from ._report_html import _CSS, _render_html_block
@@ -37,14 +38,16 @@ def _policy_table(res) -> _Table:
     rows.append(["adjustments", ""] + [str(o["adjustments"]) for o in over])
     cells.append([""] * (2 + len(names)))
     return _Table(
-        ["feature", "on"] + [f"{n} (µm)" for n in names],
+        ["feature", "on"] + [f"{feedback_policy_label(n)} (µm)" for n in names],
         rows,
         cells=cells,
         caption="RMS realised deviation per policy, as drawn (µm on the feature's "
         "coordinate; 'all': the normal deviation over every feature and part), on the "
-        "counterfactual that a correction adds to the following parts. The anchors "
-        "(full, fixed_gain, mean_value, ewma, dewma) are tuned on this run over their "
-        "documented grids (a hindsight advantage bayes does not get); green: the lowest.",
+        "counterfactual that a correction adds to the following parts. Two comparisons "
+        "for the anchors (fixed_gain, mean_value, ewma, dewma): (a) the one setting a shop "
+        "tunes for the machine (compensate.SHOP_SETTINGS, the same for every run); (b) "
+        "tuned on this run over their documented grids (a hindsight advantage bayes does "
+        "not get; full is not tuned). bayes has fixed settings; green: the lowest.",
     )
 
 
@@ -62,8 +65,9 @@ def _settings_table(res) -> _Table:
     names = [n for n in res.policies if n not in ("none", "full", "bayes")]
     rows = [[f.feature] + [_settings_cell(f.policies[n].settings) if n in f.policies else "–"
                            for n in names] for f in res.features.values()]  # fmt: skip
-    return _Table(["feature"] + names, rows,
-                  caption="The anchors' tuned settings per feature (fixed_gain: gain, null "
+    return _Table(["feature"] + [feedback_policy_label(n) for n in names], rows,
+                  caption="The anchors' settings per feature ((a): the machine's one "
+                  "setting; (b): tuned on this run; fixed_gain: gain, null "
                   "band and upper limit as fractions of the tolerance half-width; "
                   "mean_value: window K; ewma: λ; dewma: λ1, λ2).")  # fmt: skip
 

@@ -7,7 +7,15 @@ tool_changes = ["part21"]          # parts cut first after a tool change (part i
 policies = ["none", "ewma", "bayes"]   # default: every policy
 finish_files = ["finish/*.csv"]    # finished-part measurements (post-process loop)
 characteristic = "mid"             # default: capability.characteristic, else "mid"
+inspect_every = 5                  # every 5th part measured (default 1: every part)
+delay = 1                          # a result arrives 1 part late (default 0)
 ```
+
+`inspect_every` says that the probe files hold every `inspect_every`-th part of the
+production run (the parts between are cut and not measured); `delay` that a part's
+result arrives after `delay` more parts are cut. Both shape the tracking (a part not
+measured is a prediction step), the replay (a correction is decided when a result
+arrives and held until the next) and the next-part recommendation.
 
 Every key is optional and checked here (type, known names; `finish_files`
 resolved against the study's folder, each pattern must match a file); the part
@@ -28,7 +36,8 @@ __all__ = ["FEEDBACK_KEYS", "FEEDBACK_POLICIES", "read_feedback"]
 FEEDBACK_POLICIES = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma", "bayes")
 
 #: the keys of `[feedback]` (for the schema check of the whole study file)
-FEEDBACK_KEYS = ("tool_changes", "policies", "finish_files", "characteristic")
+FEEDBACK_KEYS = ("tool_changes", "policies", "finish_files", "characteristic", "inspect_every",
+                 "delay")  # fmt: skip
 
 _CHARACTERISTICS = ("mid", "start", "end")
 
@@ -47,8 +56,9 @@ def _strings(r: Reader, sec: dict, key: str, what: str) -> tuple[str, ...]:
 
 def read_feedback(r: Reader, sec: dict, base: Path) -> MappingProxyType:
     """Validate `[feedback]` (see the module doc): `{tool_changes: (part id, ...),
-    policies: (name, ...), finish_files: (Path, ...), characteristic: str}`, only the
-    keys given; `finish_files` as the sorted, de-duplicated files their patterns match."""
+    policies: (name, ...), finish_files: (Path, ...), characteristic: str,
+    inspect_every: int >= 1, delay: int >= 0}`, only the keys given; `finish_files` as
+    the sorted, de-duplicated files their patterns match."""
     out: dict = {}
     for key, val in sec.items():
         if key not in FEEDBACK_KEYS:
@@ -85,6 +95,10 @@ def read_feedback(r: Reader, sec: dict, base: Path) -> MappingProxyType:
                 )
             files += [p for p in found if p not in files]
         out["finish_files"] = tuple(files)
+    if "inspect_every" in sec:
+        out["inspect_every"] = r.integer(sec, "inspect_every", "feedback.", 1, minimum=1)
+    if "delay" in sec:
+        out["delay"] = r.integer(sec, "delay", "feedback.", 0, minimum=0)
     if "characteristic" in sec:
         out["characteristic"] = r.choice(
             sec, "characteristic", "feedback.", _CHARACTERISTICS, "mid"

@@ -50,6 +50,8 @@ from ._feedback import FeatureFeedback as FeatureFeedback
 from ._feedback import FeedbackResult as FeedbackResult
 from ._feedback import feedback_from_values as feedback_from_values
 from ._feedback import feedback_study as feedback_study
+from ._feedback_result import feedback_comparison as feedback_comparison
+from ._feedback_result import feedback_policy_label as feedback_policy_label
 from ._fit import adjust_study_program as adjust_study_program
 from ._fit import bayes_study as bayes_study
 from ._fit import compensate_study as compensate_study

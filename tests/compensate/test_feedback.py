@@ -208,7 +208,7 @@ def test_a_large_correction_is_undone_not_locked_in():
     width, 20 µm) and undoes it when the level is back. Undoing is never withheld: a
     limit on every adjustment would keep a large correction once the model's prediction
     moves back by more than the limit in one part (e.g. odd parts taken for a step)."""
-    from piecs_bayes.compensate._feedback import _held
+    from piecs_bayes.compensate._feedback_loop import held as _held
 
     rng = np.random.default_rng(11)
     dev = rng.normal(0.0, 1.0, 40) * UM

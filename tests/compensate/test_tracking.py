@@ -175,22 +175,29 @@ def test_a_declared_tool_change_restarts_the_wear():
 
 
 def test_the_grid_prior():
-    """The drift of the grid: none (1/2), wear of the edge, which only leaves material,
-    a half-normal rate of scale 0.3 µm/part by its mean and sd (7/16), either sign
-    (1/16)."""
+    """The drift of the grid (issue 28): none (0.45), wear of the edge, which only leaves
+    material, a half-normal rate of scale 0.3 µm/part by its mean and sd (0.35), either
+    sign (0.05), a new edge's fast wear that slows (0.10: 1.2 ± 0.8 µm/part decaying by
+    0.95 per part, its rate wandering by 0.05), a transient of either sign (0.05: a
+    warm-up, ± 6 µm/part decaying by 0.6 per part); the level walk 0, 0.2 and 1 µm/part
+    (0.45, 0.45, 0.1)."""
     w = np.exp(GRID_LOG_PRIOR)
     assert w.sum() == pytest.approx(1.0) and len(w) == len(HYPER_GRID)
 
     def share(pick):
         return sum(wi for wi, g in zip(w, HYPER_GRID, strict=True) if pick(g))
 
-    assert share(lambda g: g.drift0_sd == 0) == pytest.approx(0.5)
-    assert share(lambda g: g.drift0_mean > 0) == pytest.approx(7 / 16)
+    assert share(lambda g: g.drift0_sd == 0) == pytest.approx(0.45)
+    assert share(lambda g: g.drift0_mean > 0 and g.drift_decay == 1) == pytest.approx(0.35)
     wear = next(g for g in HYPER_GRID if g.drift0_mean > 0)
     assert wear.drift0_mean == pytest.approx(0.3 * UM * math.sqrt(2 / math.pi))
     assert wear.drift0_sd == pytest.approx(0.3 * UM * math.sqrt(1 - 2 / math.pi))
+    assert share(lambda g: g.drift_decay == 0.95 and g.drift0_mean > 0) == pytest.approx(0.10)
+    assert share(lambda g: g.drift_decay == 0.6 and g.drift0_mean == 0) == pytest.approx(0.05)
+    assert share(lambda g: g.level_sd > 0.5 * UM) == pytest.approx(0.10)
     assert share(lambda g: g.step_prob < 0.01) == pytest.approx(0.5)
-    assert all(g.drift_sd == 0 and g.wear_reset == 1 for g in HYPER_GRID)
+    assert all(g.wear_reset == 1 for g in HYPER_GRID)
+    assert all(g.drift_sd == 0 for g in HYPER_GRID if g.drift_decay == 1)
 
 
 def test_diffuse_start_is_the_limit_of_a_wide_prior():

@@ -1,0 +1,105 @@
+"""`[feedback] inspect_every` and `delay` (issue 28): the keys are checked, the job
+tracks and replays in production order (the parts between measured ones are
+prediction steps), and every anchor's row says which comparison it is."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from piecs_bayes.errors import InputError
+from piecs_bayes.io import load_study
+
+BATCH = Path(__file__).resolve().parents[2] / "data" / "batch"
+
+
+def _study(tmp_path: Path, table: str, parts: str = "part*.csv") -> Path:
+    for p in BATCH.glob(parts):
+        shutil.copy(p, tmp_path / p.name)
+    text = (BATCH / "study.toml").read_text(encoding="utf-8")
+    path = tmp_path / "study.toml"
+    path.write_text(text + "\n[feedback]\n" + table + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("table", "words"),
+    [
+        ("inspect_every = 0", ["feedback.inspect_every", "must be >= 1", "0"]),
+        ('inspect_every = "5"', ["feedback.inspect_every", "expected an integer"]),
+        ("inspect_every = 2.5", ["feedback.inspect_every", "expected an integer"]),
+        ("delay = -1", ["feedback.delay", "must be >= 0"]),
+        ("delay = true", ["feedback.delay", "expected an integer"]),
+        ("delays = 1", ["feedback.delays", "unknown key"]),
+    ],
+)
+def test_bad_loop_keys_are_refused_naming_file_key_value(tmp_path, table, words):
+    path = _study(tmp_path, table, "part0[1-4].csv")
+    with pytest.raises(InputError) as exc:
+        load_study(path)
+    msg = str(exc.value)
+    assert str(path) in msg
+    for w in words:
+        assert w in msg, (w, msg)
+
+
+def test_the_keys_are_read():
+    from piecs_bayes.io import FEEDBACK_KEYS
+
+    assert {"inspect_every", "delay"} <= set(FEEDBACK_KEYS)
+
+
+@pytest.fixture(scope="module")
+def sampled(tmp_path_factory):
+    from piecs_bayes.jobs import feedback_study
+
+    path = _study(tmp_path_factory.mktemp("sampled"), "inspect_every = 3\ndelay = 1")
+    return feedback_study(load_study(path), progress=False)
+
+
+def test_the_job_runs_the_loop_as_the_shop_does(sampled):
+    from piecs_bayes.compensate import SHOP_SETTINGS, replay
+
+    res = sampled
+    assert (res.inspect_every, res.delay) == (3, 1)
+    f = next(iter(res.features.values()))
+    n = len(f.parts)
+    assert f.track.level.shape == (n,) and f.policies["bayes"].realised.shape == (n,)
+    # the bayes row is the replay in production order (36 measured parts of 106)
+    prod = np.full(3 * (n - 1) + 1, np.nan)
+    prod[::3] = f.values
+    u = np.full(prod.size, np.nan)
+    u[::3] = f.u
+    again = replay(prod, u, policy="bayes", settings={}, tolerance=f.tolerance,
+                   inspect_every=3, delay=1)  # fmt: skip
+    np.testing.assert_allclose(f.policies["bayes"].realised, again.realised[::3], atol=1e-12)
+    for name in SHOP_SETTINGS:
+        shown = f.policies[f"{name} (a)"].settings
+        assert {k: shown[k] for k in SHOP_SETTINGS[name]} == SHOP_SETTINGS[name]
+    nxt = res.next_part_rows()
+    assert all(np.isfinite(r["correction_mm"]) and r["u_mm"] > 0 for r in nxt)
+
+
+def test_rows_say_which_comparison_they_are(sampled):
+    from piecs_bayes.export import feedback_text
+
+    rows = {(r["feature"], r["policy"]): r["comparison"] for r in sampled.policy_rows()}
+    assert rows["all", "ewma"].startswith("b: tuned on this run")
+    assert rows["all", "ewma (a)"].startswith("a: one setting for the machine")
+    assert rows["all", "bayes"] == ""
+    text = feedback_text(sampled)
+    assert "ewma (a)" in text and "ewma (b)" in text and "every 3. part measured" in text
+    head = sampled.to_dataframe("parts").columns
+    assert "realised_ewma_a" in head and "realised_ewma" in head
+
+
+def test_the_report_shows_both_comparisons(sampled):
+    from piecs_bayes.export import feedback_report_html
+
+    page = feedback_report_html(sampled, png={"feedback_tracks": b"", "feedback_policies": b""})
+    for label in ("ewma (a) (µm)", "ewma (b) (µm)", "dewma (a)", "fixed_gain (b)"):
+        assert label in page, label
+    assert "one setting a shop" in page and "tuned on this run" in page
