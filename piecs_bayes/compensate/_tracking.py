@@ -416,18 +416,39 @@ def _mixture_cdf(x, w, m, s):
     return np.where(np.isnan(m[..., 0]), np.nan, c)
 
 
+_QUANTILE_TOL = 1e-13  # mm: the quantile's final step
+
+
 def _mixture_quantile(p, w, m, s):
-    """Quantile `p` of Gaussian mixtures `(..., C)` by bisection (NaN rows stay NaN)."""
+    """Quantile `p` of Gaussian mixtures `(..., C)` (NaN rows stay NaN): Newton's
+    method kept inside a bisection bracket (a step that leaves the bracket, or a
+    density of zero, bisects), from the moment-matched normal's quantile, until every
+    step is below `_QUANTILE_TOL` (at most 100 steps)."""
     bad = np.isnan(m[..., 0])
-    mm = np.where(bad[..., None], 0.0, m)
-    ss = np.where(bad[..., None], 1.0, s)
-    lo = np.min(mm - 12 * ss, -1)
-    hi = np.max(mm + 12 * ss, -1)
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        below = _mixture_cdf(mid, w, m, s) < p
-        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-    return np.where(bad, np.nan, 0.5 * (lo + hi))
+    w = np.where(bad[..., None], 0.0, w)
+    m = np.where(bad[..., None], 0.0, m)
+    s = np.where(bad[..., None], 1.0, s)
+    tot = np.sum(w, -1)
+    tot = np.where(tot > 0, tot, 1.0)
+    lo = np.min(m - 12 * s, -1)
+    hi = np.max(m + 12 * s, -1)
+    mean = np.sum(w * m, -1) / tot
+    sd = np.sqrt(np.sum(w * (s**2 + (m - mean[..., None]) ** 2), -1) / tot)
+    x = np.clip(mean + sd * special.ndtri(p), lo, hi)
+    for _ in range(100):
+        z = (x[..., None] - m) / s
+        f = np.sum(w * special.ndtr(z), -1) / tot - p
+        dens = np.sum(w * np.exp(-0.5 * z * z) / s, -1) / (tot * math.sqrt(2 * math.pi))
+        lo, hi = np.where(f < 0, x, lo), np.where(f < 0, hi, x)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            nxt = x - f / dens
+        inside = np.isfinite(nxt) & (nxt >= lo) & (nxt <= hi)
+        nxt = np.where(inside, nxt, 0.5 * (lo + hi))
+        done = np.abs(nxt - x) <= _QUANTILE_TOL
+        x = nxt
+        if np.all(done | bad):
+            break
+    return np.where(bad, np.nan, x)
 
 
 # --------------------------------------------------------------------------- public
