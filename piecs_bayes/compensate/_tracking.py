@@ -106,6 +106,7 @@ import numpy as np
 
 from .. import _config
 from ..errors import InputError
+from ._mixture import mixture_cdf, mixture_quantile
 from ._tracking_filter import mixture_filter, smoother
 
 optimize = _config.LazyModule("scipy.optimize")
@@ -276,7 +277,7 @@ class Track:
     def pit(self, values) -> np.ndarray:
         """The predictive cdf at `values` per part (probability integral transform)."""
         v = np.asarray(values, dtype=float)
-        return _mixture_cdf(v, self.pred_weights, self.pred_means, self.pred_sds)
+        return mixture_cdf(v, self.pred_weights, self.pred_means, self.pred_sds)
 
     def __repr__(self) -> str:
         steps = ", ".join(str(s) for s in self.steps) or "none"
@@ -410,47 +411,6 @@ def predictive_mixture(out: dict, wts: np.ndarray) -> tuple[np.ndarray, ...]:
     return pw, pm, ps
 
 
-def _mixture_cdf(x, w, m, s):
-    with np.errstate(invalid="ignore"):
-        c = np.sum(w * special.ndtr((np.asarray(x)[..., None] - m) / s), -1)
-    return np.where(np.isnan(m[..., 0]), np.nan, c)
-
-
-_QUANTILE_TOL = 1e-13  # mm: the quantile's final step
-
-
-def _mixture_quantile(p, w, m, s):
-    """Quantile `p` of Gaussian mixtures `(..., C)` (NaN rows stay NaN): Newton's
-    method kept inside a bisection bracket (a step that leaves the bracket, or a
-    density of zero, bisects), from the moment-matched normal's quantile, until every
-    step is below `_QUANTILE_TOL` (at most 100 steps)."""
-    bad = np.isnan(m[..., 0])
-    w = np.where(bad[..., None], 0.0, w)
-    m = np.where(bad[..., None], 0.0, m)
-    s = np.where(bad[..., None], 1.0, s)
-    tot = np.sum(w, -1)
-    tot = np.where(tot > 0, tot, 1.0)
-    lo = np.min(m - 12 * s, -1)
-    hi = np.max(m + 12 * s, -1)
-    mean = np.sum(w * m, -1) / tot
-    sd = np.sqrt(np.sum(w * (s**2 + (m - mean[..., None]) ** 2), -1) / tot)
-    x = np.clip(mean + sd * special.ndtri(p), lo, hi)
-    for _ in range(100):
-        z = (x[..., None] - m) / s
-        f = np.sum(w * special.ndtr(z), -1) / tot - p
-        dens = np.sum(w * np.exp(-0.5 * z * z) / s, -1) / (tot * math.sqrt(2 * math.pi))
-        lo, hi = np.where(f < 0, x, lo), np.where(f < 0, hi, x)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            nxt = x - f / dens
-        inside = np.isfinite(nxt) & (nxt >= lo) & (nxt <= hi)
-        nxt = np.where(inside, nxt, 0.5 * (lo + hi))
-        done = np.abs(nxt - x) <= _QUANTILE_TOL
-        x = nxt
-        if np.all(done | bad):
-            break
-    return np.where(bad, np.nan, x)
-
-
 # --------------------------------------------------------------------------- public
 
 
@@ -529,8 +489,8 @@ def track(values, u, *, model: TrackModel | None = None, tool_changes=(), transf
     smean = np.sum(fin[:, None] * sm, 0)
     svar = np.sum(fin[:, None] * (sv + (sm - smean) ** 2), 0)
     pw, pmx, psx = (a[0] for a in predictive_mixture(out, wts))
-    lo = _mixture_quantile(0.025, pw, pmx, psx)
-    hi = _mixture_quantile(0.975, pw, pmx, psx)
+    lo = mixture_quantile(0.025, pw, pmx, psx)
+    hi = mixture_quantile(0.975, pw, pmx, psx)
     nm, nv = float(lmean[0, n]), float(lvar[0, n])
     scatter_next = float(np.sum(fin * scat2[:, 0]))
     steps = tuple(sorted(set(np.flatnonzero(declared).tolist()) | set(

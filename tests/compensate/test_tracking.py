@@ -322,11 +322,11 @@ def test_mixture_quantile_is_the_root_of_the_mixture_cdf():
     two-component mixtures (one far and wide, as an odd part's) against a root finder."""
     from scipy import optimize, special, stats
 
-    from piecs_bayes.compensate._tracking import _mixture_cdf, _mixture_quantile
+    from piecs_bayes.compensate._mixture import mixture_cdf, mixture_quantile
 
     m, s = np.array([[0.003]]), np.array([[0.0015]])
     for p in (0.001, 0.025, 0.5, 0.975):
-        q = _mixture_quantile(p, np.ones((1, 1)), m, s)
+        q = mixture_quantile(p, np.ones((1, 1)), m, s)
         assert q[0] == pytest.approx(0.003 + 0.0015 * special.ndtri(p), abs=1e-15)
     rng = np.random.default_rng(3)
     w = np.stack([np.full(50, 0.97), np.full(50, 0.03)], 1)
@@ -334,9 +334,9 @@ def test_mixture_quantile_is_the_root_of_the_mixture_cdf():
     ss = np.stack([rng.uniform(0.001, 0.003, 50), np.full(50, 0.04)], 1)
     mm[7] = np.nan  # a part without a predictive stays NaN
     for p in (0.025, 0.975):
-        q = _mixture_quantile(p, w, mm, ss)
+        q = mixture_quantile(p, w, mm, ss)
         assert np.isnan(q[7]) and np.all(np.isfinite(np.delete(q, 7)))
         for i in (0, 13, 42):
-            cdf = lambda x, i=i: float(np.sum(w[i] * stats.norm.cdf(x, mm[i], ss[i]))) - p  # noqa: E731
+            cdf = lambda x, i=i, p=p: float(np.sum(w[i] * stats.norm.cdf(x, mm[i], ss[i]))) - p  # noqa: E731
             assert q[i] == pytest.approx(optimize.brentq(cdf, -1, 1, xtol=1e-16), abs=1e-13)
-            assert float(_mixture_cdf(q[i], w[i], mm[i], ss[i])) == pytest.approx(p, abs=1e-12)
+            assert float(mixture_cdf(q[i], w[i], mm[i], ss[i])) == pytest.approx(p, abs=1e-12)
