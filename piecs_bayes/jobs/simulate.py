@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -454,18 +454,10 @@ def write_batch(
     out = Path(out_dir)
     rng = np.random.default_rng(seed)
     profile = demo_profile()
-    cut_length = sum(f.length for f in profile.features)  # mm of cut per part
-    wear_per_part = 0.0003  # radial, mm
-    base = ProcessErrors(
-        deflection=0.00008,
-        nose_radius_error=0.002,
-        wear_rate=wear_per_part / cut_length,
-        chuck_z=-100.0,
-    )
     if points is not None and int(points) < 3:  # a circle needs 3
         raise InputError(f"points per feature must be at least 3, got {points}", value=points)
     pts = DEMO_POINTS if points is None else int(points)
-    run = _Run(profile, base, tool_change_at, cut_length, seed, pts, max(2, len(str(n_parts))))
+    run = _Run(profile, tool_change_at, seed, pts, max(2, len(str(n_parts))))
     truths = [_batch_part(out, k, run, rng) for k in range(1, n_parts + 1)]
     write_text_atomic(
         out / "study.toml",
@@ -487,7 +479,7 @@ def write_batch(
         "seed": seed,
         "tool_change_at": tool_change_at,
         "tool_change_part": run.name(tool_change_at),
-        "wear_per_part_mm": wear_per_part,
+        "wear_per_part_mm": BATCH_WEAR_PER_PART,
         "part_to_part_sd_mm": 0.0008,
         "probe": {"ball_radius": 1.0, "repeatability": 0.0015},
         "parts": truths,
@@ -505,9 +497,7 @@ class _Run(NamedTuple):
     """What every part of a simulated batch shares."""
 
     profile: Profile
-    base: ProcessErrors
     tool_change_at: int
-    cut_length: float
     seed: int
     points: int | dict
     width: int
@@ -515,23 +505,36 @@ class _Run(NamedTuple):
     def name(self, k: int) -> str:
         return f"part{k:0{self.width}d}"
 
-    @property
-    def life(self) -> int:
-        return max(self.tool_change_at - 1, 1)
+
+BATCH_WEAR_PER_PART = 0.0003  # radial, mm
+
+
+def batch_part_errors(k: int, rng, *, tool_change_at: int = 21) -> tuple[ProcessErrors, bool]:
+    """The process errors of part `k` (1, 2, ...) of [`write_batch`][]'s run, and
+    whether a tool change comes before it; draws the part's two normals from `rng`
+    (the run's law, for a simulation of the study's own process with other seeds)."""
+    profile = demo_profile()
+    cut_length = sum(f.length for f in profile.features)  # mm of cut per part
+    life = max(tool_change_at - 1, 1)  # an insert lasts `tool_change_at - 1` parts
+    after = k >= tool_change_at
+    parts_on_tool = (k - 1) % life
+    err = ProcessErrors(
+        deflection=0.00008,
+        nose_radius_error=0.002,
+        wear_rate=BATCH_WEAR_PER_PART / cut_length,
+        chuck_z=-100.0,
+        tool_offset_x=(-0.004 if after else 0.002) + rng.normal(0.0, 0.0008),
+        tool_offset_z=(0.003 if after else -0.008) + rng.normal(0.0, 0.0008),
+        wear_start=cut_length * parts_on_tool,  # mm of cut on this edge before this part
+    )
+    return err, after and parts_on_tool == 0
 
 
 def _batch_part(out, k: int, run: _Run, rng) -> dict:
     """Simulate and write part `k` of the batch; its truth record."""
     from ..io import write_text_atomic
 
-    after = k >= run.tool_change_at
-    parts_on_tool = (k - 1) % run.life  # an insert lasts `tool_change_at - 1` parts
-    err = replace(
-        run.base,
-        tool_offset_x=(-0.004 if after else 0.002) + rng.normal(0.0, 0.0008),
-        tool_offset_z=(0.003 if after else -0.008) + rng.normal(0.0, 0.0008),
-        wear_start=run.cut_length * parts_on_tool,  # mm of cut on this edge before this part
-    )
+    err, change = batch_part_errors(k, rng, tool_change_at=run.tool_change_at)
     truth = process_deviations(run.profile, err)
     sim = simulate_probe(
         run.profile, truth, ball_radius=1.0, transform=DEMO_TRANSFORM, points=run.points,
@@ -544,7 +547,7 @@ def _batch_part(out, k: int, run: _Run, rng) -> dict:
     write_text_atomic(out / f"{run.name(k)}.csv", text)
     return {
         "part": run.name(k),
-        "tool_change": after and parts_on_tool == 0,
+        "tool_change": change,
         "process_errors": asdict(err),
         "deviations": {
             fid: dict(zip(run.profile[fid].param_names, map(float, d), strict=True))
@@ -553,4 +556,5 @@ def _batch_part(out, k: int, run: _Run, rng) -> dict:
     }
 
 
-__all__ += ["study_toml_text", "DEMO_ERRORS", "DEMO_TRANSFORM", "DEMO_FEATURES", "DEMO_POINTS"]
+__all__ += ["BATCH_WEAR_PER_PART", "batch_part_errors", "study_toml_text", "DEMO_ERRORS",
+            "DEMO_TRANSFORM", "DEMO_FEATURES", "DEMO_POINTS"]  # fmt: skip

@@ -13,7 +13,12 @@ from golden import Deterministic, compare_text_file
 from piecs_bayes.cli import main
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import load_probe_data
-from piecs_bayes.jobs.simulate import DEMO_POINTS, write_batch
+from piecs_bayes.jobs.simulate import (
+    BATCH_WEAR_PER_PART,
+    DEMO_POINTS,
+    batch_part_errors,
+    write_batch,
+)
 
 BATCH = Path(__file__).resolve().parents[2] / "data" / "batch"
 
@@ -28,6 +33,35 @@ def test_the_default_run_is_the_shipped_data(tmp_path):
         want, got = (BATCH / name).read_text(), (tmp_path / name).read_text()
         base = Deterministic(rtol=1e-12 if name.endswith(".json") else 0.0, atol=0.0)
         assert compare_text_file(name, want, got, base=base) == [], name
+
+
+class _MeanRng:
+    """A generator whose every normal draw is its mean: the law's systematic part."""
+
+    def normal(self, loc=0.0, scale=1.0):
+        return loc
+
+
+def test_the_batch_law_is_the_shipped_runs_law():
+    # `batch_part_errors` is the law the shipped run was drawn from (a simulation of
+    # the study's process, benchmarks/bench_batch_process.py, draws from it): its
+    # systematic part and tool change equal truth.json's, and the shipped offsets
+    # scatter about it with the law's 0.8 µm sd
+    truth = json.loads((BATCH / "truth.json").read_text())
+    resid = []
+    for k, part in enumerate(truth["parts"], start=1):
+        err, change = batch_part_errors(k, _MeanRng(), tool_change_at=truth["tool_change_at"])
+        assert change == part["tool_change"], part["part"]
+        shipped = part["process_errors"]
+        for name, value in shipped.items():
+            if name in ("tool_offset_x", "tool_offset_z"):
+                resid.append(value - getattr(err, name))
+            else:
+                assert getattr(err, name) == pytest.approx(value, rel=1e-12, abs=1e-15), name
+    assert truth["wear_per_part_mm"] == BATCH_WEAR_PER_PART
+    # 72 draws of N(0, 0.8 µm): their sd within its 99.9 % range (0.8 µm x [0.73, 1.27])
+    assert 0.73 * 0.0008 < np.std(resid, ddof=1) < 1.27 * 0.0008
+    assert abs(np.mean(resid)) < 3.3 * 0.0008 / np.sqrt(len(resid))
 
 
 def test_dense_long_run_points_names_and_tool_changes(tmp_path):
