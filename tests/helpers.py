@@ -7,6 +7,7 @@ from __future__ import annotations
 import functools
 import math
 import re
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,6 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = [
+    "BATCH",
+    "batch_study_with",
     "STRD_DIR",
     "STRD_MODELS",
     "STRD_NPARAMS",
@@ -305,3 +308,18 @@ def lobing_probe():
         np.diag([s**2 / n + 0.00025**2] + [2 * s**2 / n] * 4), date="2026-11-30", feed=200.0,
         probe="T9",
     )  # fmt: skip
+
+
+BATCH = Path(__file__).resolve().parent.parent / "data" / "batch"
+
+
+def batch_study_with(folder: Path, table: str, parts: str = "part*.csv") -> Path:
+    """A copy of data/batch in `folder` (the part files matching `parts`) whose
+    study.toml ends with a `[feedback]` table of `table`'s lines; its path."""
+    for p in BATCH.glob(parts):
+        shutil.copy(p, folder / p.name)
+    text = (BATCH / "study.toml").read_text(encoding="utf-8")
+    assert "[feedback]" not in text
+    path = folder / "study.toml"
+    path.write_text(text + "\n[feedback]\n" + table + "\n", encoding="utf-8")
+    return path

@@ -33,29 +33,40 @@ def mixture_quantile(p, w, m, s):
     """Quantile `p` of Gaussian mixtures `(..., C)` (NaN rows stay NaN): Newton's
     method kept inside a bisection bracket (a step that leaves the bracket, or a
     density of zero, bisects), from the moment-matched normal's quantile, until every
-    step is below `QUANTILE_TOL` (at most 100 steps)."""
-    bad = np.isnan(m[..., 0])
-    w = np.where(bad[..., None], 0.0, w)
-    m = np.where(bad[..., None], 0.0, m)
-    s = np.where(bad[..., None], 1.0, s)
+    step is below `QUANTILE_TOL` (at most 100 steps). A row that has converged leaves
+    the iteration (its iterates are those of the whole batch's, one row at a time)."""
+    w, m, s = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (w, m, s)))
+    shape = m.shape[:-1]
+    w, m, s = (v.reshape(-1, v.shape[-1]) for v in (w, m, s))
+    bad = np.isnan(m[:, 0])
+    x = np.full(bad.shape, np.nan)
+    act = np.flatnonzero(~bad)  # the rows still iterating
+    w, m, s = w[act], m[act], s[act]
     tot = np.sum(w, -1)
     tot = np.where(tot > 0, tot, 1.0)
+    w = w / tot[:, None]
     lo = np.min(m - 12 * s, -1)
     hi = np.max(m + 12 * s, -1)
-    mean = np.sum(w * m, -1) / tot
-    sd = np.sqrt(np.sum(w * (s**2 + (m - mean[..., None]) ** 2), -1) / tot)
-    x = np.clip(mean + sd * special.ndtri(p), lo, hi)
+    mean = np.sum(w * m, -1)
+    sd = np.sqrt(np.sum(w * (s**2 + (m - mean[:, None]) ** 2), -1))
+    xa = np.clip(mean + sd * special.ndtri(p), lo, hi)
+    norm = 1.0 / math.sqrt(2 * math.pi)
     for _ in range(100):
-        z = (x[..., None] - m) / s
-        f = np.sum(w * special.ndtr(z), -1) / tot - p
-        dens = np.sum(w * np.exp(-0.5 * z * z) / s, -1) / (tot * math.sqrt(2 * math.pi))
-        lo, hi = np.where(f < 0, x, lo), np.where(f < 0, hi, x)
+        z = (xa[:, None] - m) / s
+        f = np.sum(w * special.ndtr(z), -1) - p
+        dens = np.sum(w * np.exp(-0.5 * z * z) / s, -1) * norm
+        lo, hi = np.where(f < 0, xa, lo), np.where(f < 0, hi, xa)
         with np.errstate(divide="ignore", invalid="ignore"):
-            nxt = x - f / dens
+            nxt = xa - f / dens
         inside = np.isfinite(nxt) & (nxt >= lo) & (nxt <= hi)
         nxt = np.where(inside, nxt, 0.5 * (lo + hi))
-        done = np.abs(nxt - x) <= QUANTILE_TOL
-        x = nxt
-        if np.all(done | bad):
+        done = np.abs(nxt - xa) <= QUANTILE_TOL
+        x[act[done]] = nxt[done]
+        keep = ~done
+        if not keep.any():
             break
-    return np.where(bad, np.nan, x)
+        act, xa, lo, hi = act[keep], nxt[keep], lo[keep], hi[keep]
+        w, m, s = w[keep], m[keep], s[keep]
+    else:
+        x[act] = xa  # at the step limit: the last iterate
+    return x.reshape(shape)

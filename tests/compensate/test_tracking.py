@@ -340,3 +340,10 @@ def test_mixture_quantile_is_the_root_of_the_mixture_cdf():
             cdf = lambda x, i=i, p=p: float(np.sum(w[i] * stats.norm.cdf(x, mm[i], ss[i]))) - p  # noqa: E731
             assert q[i] == pytest.approx(optimize.brentq(cdf, -1, 1, xtol=1e-16), abs=1e-13)
             assert float(mixture_cdf(q[i], w[i], mm[i], ss[i])) == pytest.approx(p, abs=1e-12)
+    # rows leave the iteration as they converge: each row alone gives its batch value,
+    # and leading dimensions keep their shape (NaN rows included)
+    q = mixture_quantile(0.975, w.reshape(5, 10, 2), mm.reshape(5, 10, 2), ss.reshape(5, 10, 2))
+    assert q.shape == (5, 10) and np.isnan(q[0, 7])
+    for i in (0, 13, 42, 49):
+        alone = mixture_quantile(0.975, w[i : i + 1], mm[i : i + 1], ss[i : i + 1])[0]
+        assert q.reshape(-1)[i] == pytest.approx(alone, abs=1e-15)

@@ -6,16 +6,15 @@ change), the `[feedback]` table's checks and the finished-part CSV's errors."""
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import BATCH, batch_study_with
 
 from piecs_bayes.errors import InputError
 from piecs_bayes.io import load_study
 
-BATCH = Path(__file__).resolve().parents[2] / "data" / "batch"
 ANCHORS = ("full", "fixed_gain", "mean_value", "ewma", "dewma")
 
 
@@ -36,12 +35,7 @@ def declared(tmp_path_factory):
     truth = json.loads((BATCH / "truth.json").read_text(encoding="utf-8"))
     assert truth["tool_change_part"] == "part21"
     folder = tmp_path_factory.mktemp("batch_declared")
-    for p in BATCH.glob("part*.csv"):
-        shutil.copy(p, folder / p.name)
-    text = (BATCH / "study.toml").read_text(encoding="utf-8")
-    assert "[feedback]" not in text
-    path = folder / "study.toml"
-    path.write_text(text + '\n[feedback]\ntool_changes = ["part21"]\n', encoding="utf-8")
+    path = batch_study_with(folder, 'tool_changes = ["part21"]')
     return feedback_study(load_study(path), progress=False)
 
 
@@ -130,15 +124,6 @@ def test_feedback_json_has_the_issue_keys(batch, tmp_path):
     assert list(df.columns) == head and len(df) == 7 * 36
 
 
-def _study_with(tmp_path: Path, table: str) -> Path:
-    for p in BATCH.glob("part0[1-4].csv"):
-        shutil.copy(p, tmp_path / p.name)
-    text = (BATCH / "study.toml").read_text(encoding="utf-8")
-    path = tmp_path / "study.toml"
-    path.write_text(text + "\n[feedback]\n" + table + "\n", encoding="utf-8")
-    return path
-
-
 @pytest.mark.parametrize(
     ("table", "words"),
     [
@@ -151,7 +136,7 @@ def _study_with(tmp_path: Path, table: str) -> Path:
     ],
 )
 def test_bad_feedback_keys_are_refused_naming_file_key_value(tmp_path, table, words):
-    path = _study_with(tmp_path, table)
+    path = batch_study_with(tmp_path, table, "part0[1-4].csv")
     with pytest.raises(InputError) as exc:
         load_study(path)
     msg = str(exc.value)
@@ -163,7 +148,7 @@ def test_bad_feedback_keys_are_refused_naming_file_key_value(tmp_path, table, wo
 def test_an_unknown_tool_change_part_is_refused(tmp_path):
     from piecs_bayes.jobs import feedback_study
 
-    study = load_study(_study_with(tmp_path, 'tool_changes = ["part99"]'))
+    study = load_study(batch_study_with(tmp_path, 'tool_changes = ["part99"]', "part0[1-4].csv"))
     assert study.sections["feedback"]["tool_changes"] == ("part99",)
     with pytest.raises(InputError, match=r"feedback.tool_changes: unknown part 'part99'") as e:
         feedback_study(study, progress=False)
