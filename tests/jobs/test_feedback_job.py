@@ -133,6 +133,13 @@ def test_feedback_json_has_the_issue_keys(batch, tmp_path):
         ('finish_files = ["nothing/*.csv"]', ["feedback.finish_files", "nothing/*.csv"]),
         ('characteristic = "worst"', ["feedback.characteristic", "'worst'"]),
         ('tool_changes = ["part03", "part03"]', ["feedback.tool_changes", "part03"]),
+        # the loop's keys (issue 28: sampled inspection, metrology delay)
+        ("inspect_every = 0", ["feedback.inspect_every", "must be >= 1", "0"]),
+        ('inspect_every = "5"', ["feedback.inspect_every", "expected an integer"]),
+        ("inspect_every = 2.5", ["feedback.inspect_every", "expected an integer"]),
+        ("delay = -1", ["feedback.delay", "must be >= 0"]),
+        ("delay = true", ["feedback.delay", "expected an integer"]),
+        ("delays = 1", ["feedback.delays", "unknown key"]),
     ],
 )
 def test_bad_feedback_keys_are_refused_naming_file_key_value(tmp_path, table, words):

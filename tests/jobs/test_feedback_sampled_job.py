@@ -1,6 +1,7 @@
-"""`[feedback] inspect_every` and `delay` (issue 28): the keys are checked, the job
-tracks and replays in production order (the parts between measured ones are
-prediction steps), and every anchor's row says which comparison it is."""
+"""`[feedback] inspect_every` and `delay` (issue 28; their key checks are in
+test_feedback_job.py): the job tracks and replays in production order (the parts
+between measured ones are prediction steps), and every anchor's row says which
+comparison it is."""
 
 from __future__ import annotations
 
@@ -8,35 +9,7 @@ import numpy as np
 import pytest
 from helpers import batch_study_with
 
-from piecs_bayes.errors import InputError
 from piecs_bayes.io import load_study
-
-
-@pytest.mark.parametrize(
-    ("table", "words"),
-    [
-        ("inspect_every = 0", ["feedback.inspect_every", "must be >= 1", "0"]),
-        ('inspect_every = "5"', ["feedback.inspect_every", "expected an integer"]),
-        ("inspect_every = 2.5", ["feedback.inspect_every", "expected an integer"]),
-        ("delay = -1", ["feedback.delay", "must be >= 0"]),
-        ("delay = true", ["feedback.delay", "expected an integer"]),
-        ("delays = 1", ["feedback.delays", "unknown key"]),
-    ],
-)
-def test_bad_loop_keys_are_refused_naming_file_key_value(tmp_path, table, words):
-    path = batch_study_with(tmp_path, table, "part0[1-4].csv")
-    with pytest.raises(InputError) as exc:
-        load_study(path)
-    msg = str(exc.value)
-    assert str(path) in msg
-    for w in words:
-        assert w in msg, (w, msg)
-
-
-def test_the_keys_are_read():
-    from piecs_bayes.io import FEEDBACK_KEYS
-
-    assert {"inspect_every", "delay"} <= set(FEEDBACK_KEYS)
 
 
 @pytest.fixture(scope="module")
