@@ -12,6 +12,12 @@ from helpers import batch_study_with
 from piecs_bayes.io import load_study
 
 
+def test_the_keys_are_read():
+    from piecs_bayes.io import FEEDBACK_KEYS
+
+    assert {"inspect_every", "delay"} <= set(FEEDBACK_KEYS)
+
+
 @pytest.fixture(scope="module")
 def sampled(tmp_path_factory):
     from piecs_bayes.jobs import feedback_study
