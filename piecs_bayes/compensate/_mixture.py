@@ -34,7 +34,7 @@ def mixture_quantile(p, w, m, s):
     method kept inside a bisection bracket (a step that leaves the bracket, or a
     density of zero, bisects), from the moment-matched normal's quantile, until every
     step is below `QUANTILE_TOL` (at most 100 steps). A row that has converged leaves
-    the iteration (its iterates are those of the whole batch's, one row at a time)."""
+    the iteration (each row has the iterates it would have alone)."""
     w, m, s = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (w, m, s)))
     shape = m.shape[:-1]
     w, m, s = (v.reshape(-1, v.shape[-1]) for v in (w, m, s))
