@@ -13,7 +13,7 @@ walker, as a user writes it for emcee; checked equal).
   sample the same posterior (means and sds per parameter, in Monte Carlo errors).
 
 One ESS estimator for every sampler (`ess_of`): kept steps x walkers (or chains) /
-tau, tau from `piecs_bayes.fit._bayes_core._taus` (emcee's `integrated_time`, c=5,
+tau, tau from `piecs_bayes.fit.mcmc._core._taus` (emcee's `integrated_time`, c=5,
 what `Posterior.tau` of the lockstep sampler is).
 """
 
@@ -30,7 +30,7 @@ import numpy as np
 from _common import load
 from _fmt import table
 
-from piecs_bayes.fit._bayes_core import _taus
+from piecs_bayes.fit.mcmc._core import _taus
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import fit_study, inliers, load_probe_data
 
@@ -193,10 +193,10 @@ def section_cd(args):
     import emcee
 
     from piecs_bayes.fit import sample_posteriors
-    from piecs_bayes.fit._batch_bayes import _parts_walkers
-    from piecs_bayes.fit._bayes import _vectorised
-    from piecs_bayes.fit._bayes_core import _neg_hessian, _sqrt_psd
-    from piecs_bayes.fit._moves import emcee_moves
+    from piecs_bayes.fit.mcmc._core import _neg_hessian, _sqrt_psd
+    from piecs_bayes.fit.mcmc._lockstep import _parts_walkers
+    from piecs_bayes.fit.mcmc._moves import emcee_moves
+    from piecs_bayes.fit.mcmc._sampler import _vectorised
 
     print(f"\n## (c) emcee: JAX vs NumPy log posterior; lockstep ensembles\n\n{load()}\n")
     log_prob, pargs, x0, names, np_lp = _posterior()

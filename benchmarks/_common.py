@@ -1,6 +1,6 @@
 """Shared pieces of the benchmarks: simulated fleets of parts, timing, machine state.
 
-`simulate_fleet(n)` makes `n` demo shafts the way `piecs_bayes.jobs.simulate.write_batch`
+`simulate_fleet(n)` makes `n` demo shafts the way `piecs_bayes.simulate.write_batch`
 makes its 36 (process errors -> exact deviations -> probe triggers with 1.5 um
 noise), vectorised over parts so that 10,000 parts take seconds: the triggers of
 each feature are computed for every part at once with `jax.vmap` of the
@@ -22,7 +22,7 @@ import numpy as np
 from _fmt import load  # noqa: F401  (re-exported for the benchmarks)
 
 from piecs_bayes.geometry import part_to_machine
-from piecs_bayes.jobs.simulate import (
+from piecs_bayes.simulate import (
     DEMO_POINTS,
     DEMO_TRANSFORM,
     ProcessErrors,

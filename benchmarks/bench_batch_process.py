@@ -49,14 +49,10 @@ sys.path.insert(0, str(ROOT))
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from piecs_bayes.compensate._feedback import TUNING_GRIDS, replay_runs  # noqa: E402
+from piecs_bayes.feedback._policies import TUNING_GRIDS, replay_runs  # noqa: E402
 from piecs_bayes.io import load_study  # noqa: E402
 from piecs_bayes.jobs import feedback_study  # noqa: E402
-from piecs_bayes.jobs.simulate import (  # noqa: E402
-    batch_part_errors,
-    demo_profile,
-    process_deviations,
-)
+from piecs_bayes.simulate import batch_part_errors, demo_profile, process_deviations  # noqa: E402
 from piecs_bayes.uncertainty import normal_deviation  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)

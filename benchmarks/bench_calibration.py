@@ -32,7 +32,7 @@ import numpy as np
 
 from piecs_bayes.io import ProbeCalibration
 from piecs_bayes.jobs import coverage_check
-from piecs_bayes.jobs.simulate import (
+from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
     DEMO_TRANSFORM,

@@ -71,8 +71,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
-from piecs_bayes.compensate._feedback import TUNING_GRIDS, replay_runs  # noqa: E402
-from piecs_bayes.compensate._tracking import TrackModel  # noqa: E402
+from piecs_bayes.feedback._policies import TUNING_GRIDS, replay_runs  # noqa: E402
+from piecs_bayes.feedback._tracking import TrackModel  # noqa: E402
 
 UM = 1e-3
 TOL = (-10 * UM, 10 * UM)

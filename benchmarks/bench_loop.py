@@ -33,7 +33,8 @@ import numpy as np  # noqa: E402
 
 from piecs_bayes.fit import coverage_factor, effective_dof, fit_profiles  # noqa: E402
 from piecs_bayes.io import load_study, read_control_probe, read_plan_points  # noqa: E402
-from piecs_bayes.jobs import fit_options, simulate_gauge  # noqa: E402
+from piecs_bayes.jobs import fit_options  # noqa: E402
+from piecs_bayes.simulate import simulate_gauge  # noqa: E402
 from piecs_bayes.uncertainty import characteristic_arrays, normal_deviation  # noqa: E402
 
 GAUGE = ROOT / "data" / "demo" / "gauge"

@@ -56,7 +56,7 @@ import piecs_bayes  # noqa: E402,F401
 from piecs_bayes.fit import fit_profile, fit_profiles, to_part_frame  # noqa: E402
 from piecs_bayes.io import load_study  # noqa: E402
 from piecs_bayes.jobs import fit_study, load_probe_data, robust_scale  # noqa: E402
-from piecs_bayes.jobs.simulate import DEMO_TRANSFORM  # noqa: E402
+from piecs_bayes.simulate import DEMO_TRANSFORM  # noqa: E402
 
 TOL = 1e-10
 

@@ -4,7 +4,8 @@ on the same layers, `[tool.importlinter]` in pyproject.toml).
 Every module's imports, lazy ones inside functions included, are read with `ast`;
 each module of piecs_bayes belongs to the layer of its top-level package:
 
-    cli > export > jobs > uncertainty > gcode | fit | compensate > io > geometry
+    cli > export > jobs > simulate > uncertainty > feedback
+        > gcode | fit | compensate | decide | capability > io > geometry
         > errors | _config
 
 A module imports only its own package and the layers below it; siblings of one
@@ -28,8 +29,10 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("cli",),
     ("export",),
     ("jobs",),
+    ("simulate",),
     ("uncertainty",),
-    ("gcode", "fit", "compensate"),
+    ("feedback",),
+    ("gcode", "fit", "compensate", "decide", "capability"),
     ("io",),
     ("geometry",),
     ("errors", "_config"),
@@ -120,7 +123,7 @@ def test_other_packages_are_used_through_their_face():
             top = _top(target, imported)
             if top is None or top == own:
                 continue
-            # below the top-level package: piecs_bayes.fit._robust is fit's own
+            # below the top-level package: piecs_bayes.fit.lsq.losses is fit's own
             private_module = any(_is_private(p) for p in target.split(".")[2:])
             private_name = (
                 imported is not None and _is_private(imported) and imported != top  # _config

@@ -209,7 +209,7 @@ def _machine_files(args, study, fit, path, out, route, why, console):
 
 
 def cmd_simulate(args, console) -> int:
-    from ..jobs import simulate
+    from .. import simulate
 
     if args.which == "gauge":
         return _simulate_gauge(args, console)
@@ -220,7 +220,7 @@ def cmd_simulate(args, console) -> int:
         )
     out = args.out or Path("data") / args.which
     if args.which == "calibration":
-        from ..jobs import write_calibration_sim
+        from ..simulate import write_calibration_sim
 
         rep = 0.0015 if args.repeatability is None else args.repeatability
         for p in write_calibration_sim(out, seed=args.seed, repeatability=rep):
@@ -236,7 +236,7 @@ def cmd_simulate(args, console) -> int:
 
 def _simulate_gauge(args, console) -> int:
     from ..io import load_study, read_probe_calibration
-    from ..jobs import simulate_gauge
+    from ..simulate import simulate_gauge
 
     for value, what in ((args.program, "PROGRAM"), (args.study, "--study STUDY"),
                         (args.truth, "--truth TRUTH"), (args.out, "--out FILE")):  # fmt: skip

@@ -1,54 +1,16 @@
-"""From fitted deviations to decisions: PIECS mirroring, capability, decision rules."""
+"""PIECS mirroring and the machine-correction data: the adjusted tool path,
+error-spec tables and tool-offset updates."""
 
 from .. import _config  # noqa: F401  (float64 before any JAX array)
-from ._actions import ActionLoss as ActionLoss
-from ._bayes_capability import BayesCapability as BayesCapability
-from ._capability import CapabilityResult as CapabilityResult
-from ._capability import capability as capability
-from ._conformance import Conformance as Conformance
-from ._conformance import conformance as conformance
-from ._decision import Decision as Decision
-from ._decision import decide as decide
 from ._errspec_tables import ERRSPEC_FORMAT_VERSION as ERRSPEC_FORMAT_VERSION
 from ._errspec_tables import CompensationTable as CompensationTable
 from ._errspec_tables import ErrorSpec as ErrorSpec
-from ._feedback import BAYES_DECISION as BAYES_DECISION
-from ._feedback import COMPARISONS as COMPARISONS
-from ._feedback import POLICIES as POLICIES
-from ._feedback import SHOP_SETTINGS as SHOP_SETTINGS
-from ._feedback import TUNING_GRIDS as TUNING_GRIDS
-from ._feedback import PolicyResult as PolicyResult
-from ._feedback import at_measured as at_measured
-from ._feedback import next_part as next_part
-from ._feedback import predictive_coverage as predictive_coverage
-from ._feedback import replay as replay
-from ._feedback import replay_runs as replay_runs
-from ._feedback import tune as tune
-from ._feedback_loop import expand_sampled as expand_sampled
-from ._indices import Interval as Interval
 from ._mirror import AdjustedPath as AdjustedPath
 from ._mirror import adjusted_geometry as adjusted_geometry
 from ._mirror import adjusted_path as adjusted_path
 from ._mirror import compensated_deviations as compensated_deviations
-from ._prediction import PredictedCapability as PredictedCapability
-from ._prediction import predict_capability as predict_capability
-from ._settings import DecisionSettings as DecisionSettings
-from ._settings import settings_from_spec as settings_from_spec
-from ._sigma import SigmaEstimate as SigmaEstimate
-from ._sigma import c4_constant as c4_constant
-from ._sigma import d2_constant as d2_constant
-from ._sigma import sigma_within as sigma_within
-from ._stability import StabilityResult as StabilityResult
-from ._stability import stability_check as stability_check
 from ._tool_offsets import AxisCorrection as AxisCorrection
 from ._tool_offsets import OffsetSettings as OffsetSettings
 from ._tool_offsets import ToolOffsets as ToolOffsets
 from ._tool_offsets import ToolOffsetUpdate as ToolOffsetUpdate
 from ._tool_offsets import tool_offset_update as tool_offset_update
-from ._tracking import GRID_LOG_PRIOR as GRID_LOG_PRIOR
-from ._tracking import HYPER_GRID as HYPER_GRID
-from ._tracking import Track as Track
-from ._tracking import TrackModel as TrackModel
-from ._tracking import fit_track_model as fit_track_model
-from ._tracking import fit_transfer as fit_transfer
-from ._tracking import track as track

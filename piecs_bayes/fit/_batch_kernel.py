@@ -6,7 +6,7 @@ every step pays the general machinery (trust-region bookkeeping, a QR per step):
 on the feature models (2-3 parameters, 4-16 points) LM takes ~125 steps and
 ~300 us per problem. This kernel minimises **the same staged objectives**
 $\tfrac12\sum_i s^2\rho(z_i)$ (same schedule `stages`, same scale re-estimation
-`_robust.mad_sigma` between stages, same losses from `_robust`) by Newton steps
+`losses.mad_sigma` between stages, same losses from `losses`) by Newton steps
 with the curvature $J^\top\mathrm{diag}(\max(\rho' + 2z\rho'', \kappa\rho'))J$
 (Gauss-Newton for the linear loss; exact on Huber's active set, so it finishes
 in a few steps), the $p \le 3$ normal equations solved in closed form, each
@@ -41,10 +41,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import _robust
-from ._lsq_core import stages
-from ._lsq_statistics import analyse, statistics
-from ._lsq_types import Status
+from .lsq import Status, analyse, losses, stages, statistics
 
 __all__ = ["kernel_solver", "svd_batch"]
 
@@ -102,7 +99,7 @@ def kernel_solver(fn, p: int, loss: str, rtol: float, atol: float):
     slices of `svd_batch` problems; the same signature and result (`LsqArrays`) as
     the batch engine's group solver: `solve(points, geom, ball_radius, weights,
     scale, sigma)`, the first, second and fourth batched."""
-    robust = _robust.loss_id(loss) != 0
+    robust = losses.loss_id(loss) != 0
     ids, cs = stages(loss) if robust else (np.zeros(1, np.int32), np.ones(1))
     final_id, tuning = int(ids[-1]), float(cs[-1])
     one = functools.partial(_solve_one, fn, p, robust, tuple(_runs(ids, cs)), rtol, atol)
@@ -178,7 +175,7 @@ def _run(weighted, mask, scale, carry, idx, cs_run, rtol, atol):
             s = jax.lax.cond(
                 given,
                 lambda: jnp.asarray(scale, dtype=float),
-                lambda: cs[k] * _robust.mad_sigma(weighted(y), mask),
+                lambda: cs[k] * losses.mad_sigma(weighted(y), mask),
             )
         y, it, ok = _newton(weighted, y, jnp.asarray(s, dtype=float), idx, rtol, atol)
         return k + 1, (y, ok, steps + it), jnp.asarray(s, float)
@@ -221,22 +218,22 @@ def _newton_step(weighted, y, s, idx, rtol, atol):
     objective does not rise beyond rounding: the new point, whether the step was
     negligible, whether it was taken, and whether the new point is finite."""
     eps = jnp.finfo(float).eps
-    d2 = jnp.vectorize(jax.grad(lambda z: _robust.rho_prime(idx, z)))
+    d2 = jnp.vectorize(jax.grad(lambda z: losses.rho_prime(idx, z)))
 
     def cost(yy):
         e = weighted(yy)
-        return 0.5 * jnp.sum(e * e * _robust.rho_over_z(idx, (e / s) ** 2))
+        return 0.5 * jnp.sum(e * e * losses.rho_over_z(idx, (e / s) ** 2))
 
     e = weighted(y)
     je = jax.jacfwd(weighted)(y)
     z = (e / s) ** 2
-    rp = _robust.rho_prime(idx, z)
+    rp = losses.rho_prime(idx, z)
     curv = jnp.maximum(rp + 2.0 * z * d2(z), CURVATURE_FLOOR * rp)
     a = je.T @ (curv[:, None] * je)
     d = jnp.sqrt(jnp.diagonal(a))
     d = jnp.where(d > 0, d, 1.0)
     step = _spd_solve(a / jnp.outer(d, d), -(je.T @ (rp * e)) / d) / d
-    c0 = 0.5 * jnp.sum(e * e * _robust.rho_over_z(idx, z))
+    c0 = 0.5 * jnp.sum(e * e * losses.rho_over_z(idx, z))
     limit = c0 * (1.0 + 16.0 * eps)
 
     if e.shape[0] <= HALVE_AT_ONCE:

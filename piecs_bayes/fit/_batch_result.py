@@ -11,12 +11,9 @@ import numpy as np
 from ..errors import AnalysisError, InputError
 from ..geometry import Profile
 from ._features import FeatureFit, _surface_and_nominal, embed_free
-from ._least_squares import flat_structure
-from ._lsq_core import is_linear
-from ._lsq_result import LsqResult, result_from_arrays
-from ._lsq_types import COV_OK, Status
 from ._profile_result import ProfileFit
 from ._sigma import DECLARED_DOF, probe_sigma, sigma_arrays
+from .lsq import COV_OK, LsqResult, Status, flat_structure, is_linear, result_from_arrays
 
 __all__ = ["BatchFit", "Group", "inlier_ss"]
 

@@ -15,8 +15,7 @@ import numpy as np
 from ..geometry import Profile
 from ._batch_kernel import kernel_solver, svd_batch
 from ._features import feature_residuals, geometry_args
-from ._lsq_core import solve_arrays
-from ._lsq_types import LsqArrays, Status
+from .lsq import LsqArrays, Status, solve_arrays
 
 __all__ = ["BATCH", "BATCH_POINTS", "Settings", "batch_rows", "dispatch", "fetch",
            "geometry_table", "group_solver", "retry_lm"]  # fmt: skip

@@ -33,13 +33,18 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import MachineTransform, Profile
-from ._batch_bayes import sample_posteriors
-from ._bayes import Posterior, gaussian_loglik, sample_posterior, student_t_loglik
 from ._inference_data import BayesData, inference_data, pointwise_over_draws, write_netcdf
 from ._measurement import SOURCE_EFFECTS, is_calibration_source, probe_residuals, source_unit
-from ._moves import check_moves
-from ._posterior import frozen
-from ._priors import prior_from_spec
+from .mcmc import (
+    Posterior,
+    check_moves,
+    frozen,
+    gaussian_loglik,
+    prior_from_spec,
+    sample_posterior,
+    sample_posteriors,
+    student_t_loglik,
+)
 
 __all__ = ["BayesProfileFit", "profile_log_posterior", "fit_profile_bayes", "fit_profiles_bayes",
            "NUISANCE_SOURCES"]  # fmt: skip

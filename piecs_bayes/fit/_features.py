@@ -27,8 +27,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import Feature, machine_to_part, rotate
-from ._least_squares import least_squares
-from ._lsq_result import LsqResult
+from .lsq import LsqResult, least_squares
 
 __all__ = [
     "FeatureFit",

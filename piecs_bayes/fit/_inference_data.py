@@ -61,7 +61,7 @@ import numpy as np
 
 from .. import __version__
 from ..geometry import machine_to_part
-from ._posterior import import_arviz
+from .mcmc import import_arviz
 
 __all__ = [
     "BayesData",

@@ -18,9 +18,9 @@ from ..errors import InputError
 from ..geometry import MachineTransform, Profile, machine_to_part
 from ..io import split_fix
 from ._features import FeatureFit
-from ._least_squares import least_squares
 from ._profile_result import ProfileFit
 from ._sigma import DECLARED_DOF, probe_sigma
+from .lsq import least_squares
 
 __all__ = ["fit_profile_joint", "TRANSFORM_PARAMS"]
 

@@ -24,18 +24,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import Profile
-from ._features import (
-    FeatureFit,
-    _check_point_count,
-    _free_parameters,
-    embed_free,
-    padded_size,
-)
-from ._least_squares import flat_structure
-from ._lsq_result import result_from_arrays
-from ._lsq_types import Status
+from ._features import FeatureFit, _check_point_count, _free_parameters, embed_free, padded_size
 from ._profile_result import ProfileFit
 from ._sigma import probe_sigma
+from .lsq import Status, flat_structure, result_from_arrays
 
 __all__ = ["check_feature_ids", "fit_part"]
 
@@ -378,7 +370,7 @@ def _part_solver(table_key, sig):
         import jax.numpy as jnp
 
         from ._batch_solve import Settings, group_solver
-        from ._lsq_types import LsqArrays
+        from .lsq import LsqArrays
 
         loss, rtol, atol, max_steps, groups = sig
         st = Settings(loss=loss, solver="auto", rtol=rtol, atol=atol, max_steps=max_steps,

@@ -41,10 +41,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import CalibrationArtefact, ProbeCalibration, approach_angle, lobe_basis
-from ._bayes import gaussian_loglik, sample_posterior
-from ._least_squares import least_squares
-from ._robust import TUNING
 from ._sigma import DECLARED_DOF
+from .lsq import TUNING, least_squares
+from .mcmc import gaussian_loglik, sample_posterior
 
 __all__ = [
     "AUTO_ORDERS",

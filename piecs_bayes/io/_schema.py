@@ -44,7 +44,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
 
 
 #: `[uncertainty]` source tables: distribution -> its keys (the study file's names; what
-#: they mean is `piecs_bayes.fit._priors`, which reads them)
+#: they mean is `piecs_bayes.fit.mcmc._priors`, which reads them)
 DIST_KEYS: dict[str, tuple[str, ...]] = {
     "normal": ("mean", "sd"),
     "gaussian": ("mean", "sd"),

@@ -11,7 +11,7 @@ study and returns immutable data; `piecs_bayes.export` renders and writes it.
   in-process or on Dask (`capability_study`, `capability_values`), path
   uncertainty of every part (`path_uncertainty_batch`);
 - the coverage check of the uncertainty model on simulated parts
-  (`coverage_check`) and the simulated data sets (`piecs_bayes.jobs.simulate`);
+  (`coverage_check`) and the simulated data sets (`piecs_bayes.simulate`);
 - `options`: the one translation of a study into the layers' settings;
 - `init_study`: a new study whose profile is the finish contour of a part program;
 - `simulate_gauge`: a gauging program run on a simulated machine against a truth
@@ -31,17 +31,12 @@ from ._batch import capability_job as capability_job
 from ._batch import capability_values as capability_values
 from ._batch import fit_study_batch as fit_study_batch
 from ._batch import path_uncertainty_batch as path_uncertainty_batch
-from ._calibrated import approach_directions as approach_directions
-from ._calibrated import calibrated_points as calibrated_points
-from ._calibrated import calibration_warnings as calibration_warnings
-from ._calibrated import lobing_pretravel as lobing_pretravel
-from ._calibrated import radius_components as radius_components
-from ._calibration import CoverageResult as CoverageResult
-from ._calibration import coverage_check as coverage_check
 from ._capability import CapabilityStudy as CapabilityStudy
 from ._capability import FeatureCapability as FeatureCapability
 from ._capability import capability_from_values as capability_from_values
 from ._capability import capability_study as capability_study
+from ._coverage import CoverageResult as CoverageResult
+from ._coverage import coverage_check as coverage_check
 from ._decide import DecisionTable as DecisionTable
 from ._decide import characteristics as characteristics
 from ._decide import decide_features as decide_features
@@ -83,14 +78,11 @@ from ._plan import plan_study as plan_study
 from ._probe_cal import calibrate_probe as calibrate_probe
 from ._probe_cal import calibration_points as calibration_points
 from ._probe_cal import parse_orders_option as parse_orders_option
+from ._probe_radius import approach_directions as approach_directions
+from ._probe_radius import calibrated_points as calibrated_points
+from ._probe_radius import calibration_warnings as calibration_warnings
+from ._probe_radius import lobing_pretravel as lobing_pretravel
+from ._probe_radius import radius_components as radius_components
 from ._results import InputFile as InputFile
 from ._results import JobResults as JobResults
 from ._results import package_versions as package_versions
-from ._sim_cal import simulate_calibration as simulate_calibration
-from ._sim_cal import write_calibration_sim as write_calibration_sim
-from ._sim_gauge import GaugeRun as GaugeRun
-from ._sim_gauge import GaugeTrip as GaugeTrip
-from ._sim_gauge import read_truth as read_truth
-from ._sim_gauge import simulate_gauge as simulate_gauge
-from ._simulate_finish import FINISH_DEFAULTS as FINISH_DEFAULTS
-from ._simulate_finish import write_finish as write_finish

@@ -23,7 +23,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ..compensate import (
+from ..capability import (
     CapabilityResult,
     PredictedCapability,
     StabilityResult,

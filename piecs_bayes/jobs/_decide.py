@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compensate import Decision, DecisionSettings, decide
+from ..decide import Decision, DecisionSettings, decide
 from ..errors import InputError
 from ..geometry import drawn_scale
 from ..io import rows_to_dataframe

@@ -45,7 +45,8 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ..compensate import (
+from ..errors import InputError
+from ..feedback import (
     POLICIES,
     SHOP_SETTINGS,
     at_measured,
@@ -56,8 +57,7 @@ from ..compensate import (
     replay,
     track,
     tune,
-)  # fmt: skip
-from ..errors import InputError
+)
 from ..geometry import drawn_scale
 from ._batch import capability_values
 from ._feedback_result import COVERAGE_LEVEL, FeatureFeedback, FeedbackResult

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compensate import COMPARISONS, SHOP_SETTINGS
+from ..feedback import COMPARISONS, SHOP_SETTINGS
 from ..io import rows_to_dataframe
 
 __all__ = [

@@ -24,8 +24,8 @@ from ..io import (
     read_plan_points,
     read_probe_csv,
 )
-from ._calibrated import calibrated_points, radius_components
 from ._options import bayes_options, calibration_sds, fit_options, robust_scale
+from ._probe_radius import calibrated_points, radius_components
 
 if TYPE_CHECKING:  # compensate pulls in scipy (~0.6 s): imported where it is used
     from ..compensate import AdjustedPath

@@ -51,7 +51,6 @@ from ..gcode import GAUGING_NAMES
 from ..io import load_study
 from ..uncertainty import normal_deviation_draws
 from ._apply import apply_route
-from ._calibrated import calibration_warnings
 from ._capability import capability_study
 from ._decide import decide_study
 from ._fit import (
@@ -63,6 +62,7 @@ from ._fit import (
     toolpath_uncertainty,
 )
 from ._machine import error_spec, tool_offsets
+from ._probe_radius import calibration_warnings
 from ._results import JobResults, hash_file, package_versions
 
 __all__ = ["run_job"]

@@ -7,11 +7,12 @@ the same thing wherever it is used.
 
 from __future__ import annotations
 
-from ..compensate import DecisionSettings, OffsetSettings, settings_from_spec
+from ..compensate import OffsetSettings
+from ..decide import DecisionSettings, settings_from_spec
 from ..errors import InputError
 from ..fit import CALIBRATION_SOURCE, TUNING, prior_from_spec
 from ..io import Study, parse_fix
-from ._calibrated import radius_components
+from ._probe_radius import radius_components
 
 __all__ = [
     "bayes_options",

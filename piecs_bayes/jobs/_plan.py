@@ -36,13 +36,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..fit import DECLARED_DOF, normal_variance_factor
-from ..geometry import (
-    CHORD_ERROR_MM,
-    feature_polyline,
-    path_distance,
-    point_distance,
-    probe_window,
-)
+from ..geometry import CHORD_ERROR_MM, feature_polyline, path_distance, point_distance, probe_window
 from ..io import parse_fix
 from ..uncertainty import (
     DesignSettings,

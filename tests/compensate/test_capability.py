@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from piecs_bayes.compensate import (
+from piecs_bayes.capability import (
     c4_constant,
     capability,
     d2_constant,

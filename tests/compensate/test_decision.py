@@ -6,12 +6,8 @@ import numpy as np
 import pytest
 from scipy import special
 
-from piecs_bayes.compensate import (
-    DecisionSettings,
-    conformance,
-    settings_from_spec,
-)
-from piecs_bayes.compensate import decide as _decide
+from piecs_bayes.decide import DecisionSettings, conformance, settings_from_spec
+from piecs_bayes.decide import decide as _decide
 from piecs_bayes.errors import InputError
 
 TOL = (-0.010, 0.010)
@@ -273,7 +269,7 @@ def test_best_action_ties_to_rounding_go_to_the_first_listed():
     """`bayes` at gain 1 is `full`: a last-bit difference must not flip the choice."""
     from types import SimpleNamespace as A
 
-    from piecs_bayes.compensate._decision import _best_action
+    from piecs_bayes.decide._decision import _best_action
 
     loss = 0.06235607048
     acts = [A(name="none", expected_loss=2.0), A(name="full", expected_loss=loss),

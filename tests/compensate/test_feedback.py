@@ -7,8 +7,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from piecs_bayes.compensate import DecisionSettings, decide
-from piecs_bayes.compensate._feedback import (
+from piecs_bayes.decide import DecisionSettings, decide
+from piecs_bayes.decide._corrections import corrections
+from piecs_bayes.errors import InputError
+from piecs_bayes.feedback._policies import (
     BAYES_DECISION,
     POLICIES,
     TUNING_GRIDS,
@@ -18,9 +20,7 @@ from piecs_bayes.compensate._feedback import (
     replay_runs,
     tune,
 )
-from piecs_bayes.compensate._tracking import TrackModel, track
-from piecs_bayes.compensate._tracking_decide import corrections
-from piecs_bayes.errors import InputError
+from piecs_bayes.feedback._tracking import TrackModel, track
 
 UM = 1e-3
 TOL = (-10 * UM, 10 * UM)
@@ -208,7 +208,7 @@ def test_a_large_correction_is_undone_not_locked_in():
     width, 20 µm) and undoes it when the level is back. Undoing is never withheld: a
     limit on every adjustment would keep a large correction once the model's prediction
     moves back by more than the limit in one part (e.g. odd parts taken for a step)."""
-    from piecs_bayes.compensate._feedback_loop import held as _held
+    from piecs_bayes.feedback._replay import held as _held
 
     rng = np.random.default_rng(11)
     dev = rng.normal(0.0, 1.0, 40) * UM

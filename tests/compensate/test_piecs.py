@@ -13,7 +13,7 @@ from piecs_bayes.fit import fit_profile
 from piecs_bayes.geometry import Profile, make_feature, profile_side
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import compensate_study, fit_study
-from piecs_bayes.jobs.simulate import (
+from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
     DEMO_TRANSFORM,

@@ -7,7 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from piecs_bayes.compensate._tracking import (
+from piecs_bayes.errors import InputError
+from piecs_bayes.feedback._filter import STEP_MEMORY, mixture_filter
+from piecs_bayes.feedback._tracking import (
     GRID_LOG_PRIOR,
     HYPER_GRID,
     TrackModel,
@@ -16,8 +18,6 @@ from piecs_bayes.compensate._tracking import (
     fit_transfer,
     track,
 )
-from piecs_bayes.compensate._tracking_filter import STEP_MEMORY, mixture_filter
-from piecs_bayes.errors import InputError
 
 UM = 1e-3
 
@@ -322,7 +322,7 @@ def test_mixture_quantile_is_the_root_of_the_mixture_cdf():
     two-component mixtures (one far and wide, as an odd part's) against a root finder."""
     from scipy import optimize, special, stats
 
-    from piecs_bayes.compensate._mixture import mixture_cdf, mixture_quantile
+    from piecs_bayes.feedback._mixture import mixture_cdf, mixture_quantile
 
     m, s = np.array([[0.003]]), np.array([[0.0015]])
     for p in (0.001, 0.025, 0.5, 0.975):

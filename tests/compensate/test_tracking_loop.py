@@ -12,11 +12,11 @@ import math
 import numpy as np
 import pytest
 
-from piecs_bayes.compensate._feedback import POLICIES, TUNING_GRIDS, replay, replay_runs
-from piecs_bayes.compensate._feedback_loop import schedule
-from piecs_bayes.compensate._tracking import TrackModel, _params, track
-from piecs_bayes.compensate._tracking_filter import mixture_filter
 from piecs_bayes.errors import InputError
+from piecs_bayes.feedback._filter import mixture_filter
+from piecs_bayes.feedback._policies import POLICIES, TUNING_GRIDS, replay, replay_runs
+from piecs_bayes.feedback._replay import schedule
+from piecs_bayes.feedback._tracking import TrackModel, _params, track
 
 UM = 1e-3
 TOL = (-10 * UM, 10 * UM)
@@ -188,7 +188,7 @@ def test_next_part_is_the_replays_correction_when_the_result_arrives(every, dela
     """The measured parts so far (every `every`-th, realised with the replay's
     corrections) and `applied`: `next_part` gives the correction the replay decides
     when the last result arrives, for the parts it holds it for."""
-    from piecs_bayes.compensate._feedback import next_part
+    from piecs_bayes.feedback._policies import next_part
 
     dev, u = _runs(seed=8, r=1, n=40)
     res = replay(dev[0], u[0], policy="bayes", settings={}, tolerance=TOL,

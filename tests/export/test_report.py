@@ -21,7 +21,7 @@ from scipy import stats
 
 from piecs_bayes.cli import main
 from piecs_bayes.export import report_files, report_html, summary_html, summary_rows
-from piecs_bayes.export._report_sections import SECTIONS
+from piecs_bayes.export.report._sections import SECTIONS
 from piecs_bayes.jobs import JobResults, run_job
 
 DATA = Path(__file__).resolve().parents[2] / "data"

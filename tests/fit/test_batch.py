@@ -99,7 +99,7 @@ def test_densely_probed_features_equal_the_loop():
     from _common import simulate_fleet
 
     from piecs_bayes.fit import fit_profile
-    from piecs_bayes.jobs.simulate import DEMO_TRANSFORM
+    from piecs_bayes.simulate import DEMO_TRANSFORM
 
     fleet = simulate_fleet(3, seed=5, points=40)
     c = to_part_frame(DEMO_TRANSFORM, fleet["points"])

@@ -23,7 +23,7 @@ KW = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
 def dense():
     from _common import simulate_fleet
 
-    from piecs_bayes.jobs.simulate import DEMO_TRANSFORM
+    from piecs_bayes.simulate import DEMO_TRANSFORM
 
     fleet = simulate_fleet(3, seed=11, points=dict.fromkeys(FEATURES, N_POINTS), chip_rate=0.0)
     c = np.array(to_part_frame(DEMO_TRANSFORM, fleet["points"]))

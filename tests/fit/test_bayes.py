@@ -158,7 +158,7 @@ def test_posterior_to_arviz_and_netcdf(newcomb, tmp_path):
     assert idata.posterior.attrs["n_ensembles"] == 4
     assert np.allclose(idata.posterior.attrs["rhat"], post.rhat)
     path = post.to_netcdf(tmp_path / "newcomb.nc")
-    from piecs_bayes.fit._posterior import import_arviz as _import_arviz
+    from piecs_bayes.fit.mcmc._posterior import import_arviz as _import_arviz
 
     back = _import_arviz().from_netcdf(path)
     ens = post.ensemble_chains  # (K, S, W, d)
@@ -174,7 +174,7 @@ def test_arviz_computes_the_reported_rhat_and_ess_from_the_stored_chains(sampler
     """Parity: what a user gets from `az.rhat` / `az.ess` on posterior.nc is what
     the package reports (and judges convergence by)."""
     from piecs_bayes.fit import sample_posteriors
-    from piecs_bayes.fit._posterior import import_arviz as _import_arviz
+    from piecs_bayes.fit.mcmc._posterior import import_arviz as _import_arviz
 
     az = _import_arviz()
     kw = dict(names=("a", "b"), nwalkers=16, nsteps=1500, seed=4, progress=False)
@@ -204,7 +204,7 @@ def test_tau_is_emcees_integrated_time():
     rounding, for long and short chains; a stuck walker gives NaN, as in emcee."""
     import emcee
 
-    from piecs_bayes.fit._bayes_core import _taus
+    from piecs_bayes.fit.mcmc._core import _taus
 
     rng = np.random.default_rng(11)
     k, s, w, d = 2, 700, 40, 3
@@ -225,7 +225,7 @@ def test_tau_is_emcees_integrated_time():
 
 def test_split_rhat_matches_arviz_across_ensembles(newcomb):
     _, _, post = newcomb
-    from piecs_bayes.fit._posterior import import_arviz as _import_arviz
+    from piecs_bayes.fit.mcmc._posterior import import_arviz as _import_arviz
 
     az = _import_arviz()
     for j in range(2):

@@ -97,7 +97,7 @@ def test_bayes_study_shows_progress_and_writes_a_thinned_posterior_nc(capsys, tm
     post = bayes.posterior
     assert post.thin > 1 and post.chains.shape[0] == 750 // post.thin  # every thin-th kept
     assert bayes.data.sampler == LOCKSTEP
-    from piecs_bayes.fit._posterior import import_arviz
+    from piecs_bayes.fit.mcmc._posterior import import_arviz
 
     idata = import_arviz().from_netcdf(bayes.to_netcdf(tmp_path / "posterior.nc"))
     for attrs in (idata.attrs, idata.posterior.attrs):

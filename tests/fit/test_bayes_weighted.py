@@ -15,7 +15,7 @@ import numpy as np
 from piecs_bayes.fit import _bayes_profile as bp
 from piecs_bayes.fit import fit_profiles_bayes, profile_log_posterior
 from piecs_bayes.geometry import MachineTransform
-from piecs_bayes.jobs.simulate import DEMO_ERRORS, demo_profile, process_deviations, simulate_parts
+from piecs_bayes.simulate import DEMO_ERRORS, demo_profile, process_deviations, simulate_parts
 
 PROFILE = demo_profile()
 FEW = {"face_end": 3, "dia_24": 8, "taper": 4, "dia_30": 5, "fillet": 5, "shoulder": 6, "dia_44": 7}

@@ -6,7 +6,7 @@ import pytest
 from piecs_bayes.errors import InputError
 from piecs_bayes.fit import TUNING, fit_feature, fit_profile, fit_profile_joint
 from piecs_bayes.geometry import MachineTransform
-from piecs_bayes.jobs.simulate import (
+from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
     DEMO_TRANSFORM,

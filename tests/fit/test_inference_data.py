@@ -20,7 +20,7 @@ import pytest
 from piecs_bayes.errors import InputError
 from piecs_bayes.fit._bayes_profile import _model, _model_key
 from piecs_bayes.fit._inference_data import keep_bits, parameter_locations
-from piecs_bayes.fit._posterior import import_arviz
+from piecs_bayes.fit.mcmc._posterior import import_arviz
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import bayes_study, fit_study, load_probe_data
 

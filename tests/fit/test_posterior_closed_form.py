@@ -35,7 +35,7 @@ import pytest
 from scipy import special
 
 from piecs_bayes.fit import gaussian_loglik, sample_posterior, sample_posteriors
-from piecs_bayes.fit._moves import MOVES, emcee_moves, snooker_move_is_sound
+from piecs_bayes.fit.mcmc._moves import MOVES, emcee_moves, snooker_move_is_sound
 
 SAMPLERS = ("emcee", "lockstep-jax", "lockstep-numpy")
 TARGETS = ("linear", "newcomb", "gauss5")

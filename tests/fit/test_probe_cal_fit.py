@@ -14,7 +14,7 @@ from scipy import stats
 from piecs_bayes.errors import InputError
 from piecs_bayes.fit import fit_probe_calibration
 from piecs_bayes.io import CalibrationArtefact, lobe_basis
-from piecs_bayes.jobs import simulate_calibration
+from piecs_bayes.simulate import simulate_calibration
 
 SPHERE = CalibrationArtefact("sphere", 25.0004, 0.0005, 2.0, (0.0, -40.0))
 SIGMA = 0.0015
@@ -192,7 +192,8 @@ def test_a_controls_probeopen_file_read_against_its_plan_gives_the_csvs_calibrat
     equals the CSV's to the file's rounding (1e-6 mm)."""
     import json
 
-    from piecs_bayes.jobs import calibrate_probe, write_calibration_sim
+    from piecs_bayes.jobs import calibrate_probe
+    from piecs_bayes.simulate import write_calibration_sim
 
     write_calibration_sim(tmp_path, seed=3)
     csv_cal = calibrate_probe(tmp_path / "calibration.toml")

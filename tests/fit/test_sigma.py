@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from piecs_bayes.compensate import conformance, decide
+from piecs_bayes.decide import conformance, decide
 from piecs_bayes.errors import InputError
 from piecs_bayes.export import fit_csv, fit_json
 from piecs_bayes.fit import (
@@ -26,7 +26,7 @@ from piecs_bayes.fit import (
 )
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import bayes_sources, fit_study
-from piecs_bayes.jobs.simulate import (
+from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_TRANSFORM,
     demo_profile,

@@ -22,7 +22,7 @@ from piecs_bayes.geometry import (
     part_to_machine,
     profile_side,
 )
-from piecs_bayes.jobs.simulate import demo_profile
+from piecs_bayes.simulate import demo_profile
 
 LINE = Line("d", (12.0, 0.0), (12.0, -30.0), side=-1)
 TAPER = Line("t", (12.0, -30.0), (15.0, -45.0), side=-1)

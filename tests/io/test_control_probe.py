@@ -15,7 +15,7 @@ from piecs_bayes.errors import InputError
 from piecs_bayes.export import plan_json
 from piecs_bayes.io import load_study, read_control_probe, read_plan_points
 from piecs_bayes.jobs import fit_study, load_probe_data, plan_study
-from piecs_bayes.jobs.simulate import DEMO_ERRORS, process_deviations, simulate_probe
+from piecs_bayes.simulate import DEMO_ERRORS, process_deviations, simulate_probe
 
 DEMO = Path(__file__).resolve().parents[2] / "data" / "demo" / "study.toml"
 

@@ -276,7 +276,7 @@ def test_unknown_uncertainty_source_and_bad_toml(tmp_path):
 
 def test_ball_too_big_for_a_concave_fillet(tmp_path):
     from piecs_bayes.geometry import MachineTransform
-    from piecs_bayes.jobs.simulate import demo_profile, study_toml_text
+    from piecs_bayes.simulate import demo_profile, study_toml_text
 
     text = study_toml_text(
         demo_profile(),

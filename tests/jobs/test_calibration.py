@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from piecs_bayes.jobs import coverage_check
-from piecs_bayes.jobs.simulate import DEMO_ERRORS, DEMO_TRANSFORM, demo_profile, process_deviations
+from piecs_bayes.simulate import DEMO_ERRORS, DEMO_TRANSFORM, demo_profile, process_deviations
 
 PROFILE = demo_profile()
 TRUTH = process_deviations(PROFILE, DEMO_ERRORS)

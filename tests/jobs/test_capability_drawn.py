@@ -13,7 +13,7 @@ import pytest
 
 import piecs_bayes.export as E
 import piecs_bayes.jobs as D
-from piecs_bayes.compensate import d2_constant
+from piecs_bayes.capability import d2_constant
 from piecs_bayes.errors import InputError
 from piecs_bayes.geometry import Profile, drawn_limits, drawn_scale, make_feature, profile_side
 from piecs_bayes.io import load_study

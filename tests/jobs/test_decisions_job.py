@@ -28,7 +28,7 @@ from piecs_bayes.export import (
 )
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import fit_study
-from piecs_bayes.jobs.simulate import (
+from piecs_bayes.simulate import (
     DEMO_EXTRA,
     DEMO_POINTS,
     DEMO_TRANSFORM,

@@ -252,7 +252,7 @@ def test_the_shipped_finished_parts_give_the_transfer(batch):
 
 
 def test_the_study_reader_knows_the_same_policies():
-    from piecs_bayes.compensate import POLICIES
+    from piecs_bayes.feedback import POLICIES
     from piecs_bayes.io import FEEDBACK_POLICIES
 
     assert FEEDBACK_POLICIES == POLICIES
@@ -260,7 +260,7 @@ def test_the_study_reader_knows_the_same_policies():
 
 def test_simulated_finished_parts_read_back_as_their_truth(tmp_path):
     from piecs_bayes.io import read_finish_files
-    from piecs_bayes.jobs import write_finish
+    from piecs_bayes.simulate import write_finish
 
     study = load_study(BATCH / "study.toml")
     truth = write_finish(tmp_path, BATCH / "truth.json", study=study, every=12, seed=3)

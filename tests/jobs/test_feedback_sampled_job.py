@@ -30,7 +30,7 @@ def sampled(tmp_path_factory):
 
 
 def test_the_job_runs_the_loop_as_the_shop_does(sampled):
-    from piecs_bayes.compensate import SHOP_SETTINGS, replay
+    from piecs_bayes.feedback import SHOP_SETTINGS, replay
 
     res = sampled
     assert (res.inspect_every, res.delay) == (3, 1)

@@ -28,10 +28,10 @@ from piecs_bayes.jobs import (
     compensate_study,
     fit_study,
     plan_study,
-    simulate_gauge,
     study_from_program,
     toolpath_uncertainty,
 )
+from piecs_bayes.simulate import simulate_gauge
 from piecs_bayes.uncertainty import normal_deviation
 
 ROOT = Path(__file__).resolve().parents[2]

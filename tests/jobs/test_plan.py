@@ -24,7 +24,7 @@ from piecs_bayes.jobs import (
     plan_more,
     plan_study,
 )
-from piecs_bayes.jobs.simulate import simulate_parts
+from piecs_bayes.simulate import simulate_parts
 from piecs_bayes.uncertainty import (
     DesignSettings,
     design_fractions,
@@ -229,7 +229,7 @@ def test_probed_points_are_found_back_along_their_feature(study):
 
 
 def _simulate(study, truth, fractions, seed):
-    from piecs_bayes.jobs.simulate import simulate_probe
+    from piecs_bayes.simulate import simulate_probe
 
     return simulate_probe(
         study.profile, truth, ball_radius=study.probe.ball_radius, transform=study.transform,
@@ -239,7 +239,7 @@ def _simulate(study, truth, fractions, seed):
 
 def _probe(study, truth, fractions, path, seed, keep):
     """A probe file of the points of `keep` and, after them, new points at `fractions`."""
-    from piecs_bayes.jobs._sim_files import probe_csv_text
+    from piecs_bayes.simulate._files import probe_csv_text
 
     sim = dict(keep)
     if fractions:

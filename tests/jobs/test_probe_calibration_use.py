@@ -28,7 +28,7 @@ from piecs_bayes.jobs import (
     load_probe_data,
     toolpath_uncertainty,
 )
-from piecs_bayes.jobs.simulate import (
+from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_TRANSFORM,
     demo_profile,

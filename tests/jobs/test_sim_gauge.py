@@ -17,7 +17,8 @@ from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.export import plan_program
 from piecs_bayes.gcode import gauging_program
 from piecs_bayes.io import load_study
-from piecs_bayes.jobs import plan_study, read_truth, simulate_gauge, study_from_program
+from piecs_bayes.jobs import plan_study, study_from_program
+from piecs_bayes.simulate import read_truth, simulate_gauge
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "data" / "demo" / "study.toml"

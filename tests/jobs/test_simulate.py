@@ -13,12 +13,7 @@ from golden import Deterministic, compare_text_file
 from piecs_bayes.cli import main
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import load_probe_data
-from piecs_bayes.jobs.simulate import (
-    BATCH_WEAR_PER_PART,
-    DEMO_POINTS,
-    batch_part_errors,
-    write_batch,
-)
+from piecs_bayes.simulate import BATCH_WEAR_PER_PART, DEMO_POINTS, batch_part_errors, write_batch
 
 BATCH = Path(__file__).resolve().parents[2] / "data" / "batch"
 

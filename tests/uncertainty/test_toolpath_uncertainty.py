@@ -8,7 +8,7 @@ import pytest
 from piecs_bayes.fit import fit_profile
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import bayes_study, fit_study, toolpath_uncertainty
-from piecs_bayes.jobs.simulate import (
+from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
     demo_profile,

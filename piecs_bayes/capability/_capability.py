@@ -1,0 +1,252 @@
+"""Process capability: Cp, Cpk, Pp, Ppk, Cpm with confidence and credible intervals.
+
+Everything here works on plain numbers (one value per part and feature, in mm);
+reading probe files and fitting parts is done elsewhere.
+
+**Indices.** With specification limits $L$, $U$, target $T$ (default the mid-point),
+mean $\\bar y$ and a process standard deviation $\\sigma$:
+
+- $C_p = (U-L)/(6\\sigma)$, $C_{pl} = (\\bar y - L)/(3\\sigma)$,
+  $C_{pu} = (U-\\bar y)/(3\\sigma)$, $C_{pk} = \\min(C_{pl}, C_{pu})$,
+  $C_{pm} = (U-L)/(6\\sqrt{\\sigma^2 + (\\bar y - T)^2})$;
+- Cp, Cpk, Cpm use the **within** (short-term) sigma: $\\bar R/d_2$ or
+  $\\bar S/c_4$ for subgroups, $\\overline{MR}/d_2(2)$ for individuals;
+  Pp, Ppk use the **overall** sample standard deviation $s$ of all values.
+
+**Confidence intervals** (level $1-\\alpha$, $z = \\Phi^{-1}(1-\\alpha/2)$, $n$ values,
+$\\nu$ degrees of freedom of the sigma estimate):
+
+- Cp, Pp (chi-square): $\\hat C_p\\sqrt{\\chi^2_{\\alpha/2,\\nu}/\\nu}$ to
+  $\\hat C_p\\sqrt{\\chi^2_{1-\\alpha/2,\\nu}/\\nu}$;
+- Cpk, Ppk, Cpl, Cpu (Bissell 1990, normal approximation):
+  $\\hat C\\,(1 \\mp z\\sqrt{1/(9n\\hat C^2) + 1/(2\\nu)})$;
+- Cpm (Boyles 1991, moment-matched chi-square):
+  $\\hat C_{pm}\\sqrt{\\chi^2_{q,\\nu_m}/\\nu_m}$ with
+  $\\nu_m = (1+r^2)^2/(1/\\nu + 2r^2/n)$, $r = (\\bar y - T)/\\hat\\sigma$
+  (equal to Boyles' $n(1+r^2)^2/(1+2r^2)$ when $\\nu = n$).
+
+`convention="piecs"` (default) uses exact $d_2, c_4$, the *effective* degrees
+of freedom of the sigma estimate (Patnaik: $\\nu = 1/(2\\,\\mathrm{Var}(\\hat\\sigma/\\sigma))$;
+$\\bar R$: $m d_2^2/(2 d_3^2)$; $\\bar S$: $m c_4^2/(2(1-c_4^2))$; $\\overline{MR}$:
+about $0.6(n-1)$ from the correlation of neighbouring ranges; overall $s$: $n-1$),
+and the formulas above. `convention="qcc"` reproduces R's `qcc::process.capability`
+(and Montgomery's worked examples): 3-decimal table constants, $\\nu = n-1$ whatever the
+sigma estimator, Cpl/Cpu limits with the one-sided $z_{1-\\alpha}$, and the Cpm degrees
+of freedom $n(1+r^2)/(1+2r^2)$. With $\\bar R$ or $\\overline{MR}$ sigmas the qcc intervals
+are too narrow (the estimate has fewer than $n-1$ degrees of freedom).
+
+**Gauge variance** $u_g^2$ (measurement repeatability) is subtracted from every
+variance: $\\sigma_p^2 = \\sigma^2 - u_g^2$; the intervals then use
+$\\nu_p = \\nu(\\sigma_p^2/\\sigma^2)^2$ (delta method), and Bayesian draws with
+$\\sigma^2 \\le u_g^2$ are discarded.
+
+Bayesian credible intervals (`bayes=True`) are described in `_bayes_capability`, the
+stability check in `_stability`, the predicted capability in `_prediction`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import AnalysisError, InputError
+from ._bayes import BayesCapability, _bayes_capability
+from ._indices import Interval, _confidence_intervals, _indices, _limits
+from ._sigma import Convention, SigmaEstimate, _as_groups, _check_convention, sigma_within
+
+__all__ = ["CapabilityResult", "capability"]
+
+
+@dataclass(frozen=True)
+class CapabilityResult:
+    """Capability indices of one characteristic with intervals; see the module docstring.
+
+    Indices a one-sided specification cannot define are NaN. `sigma_*` are the
+    process standard deviations after any gauge-variance subtraction.
+    """
+
+    n: int
+    mean: float
+    sigma_within: float
+    sigma_overall: float
+    sigma_method: str
+    df_within: float
+    df_overall: float
+    gauge_sd: float
+    lsl: float | None
+    usl: float | None
+    target: float | None
+    cp: float
+    cpl: float
+    cpu: float
+    cpk: float
+    cpm: float
+    pp: float
+    ppl: float
+    ppu: float
+    ppk: float
+    cp_ci: Interval
+    cpl_ci: Interval
+    cpu_ci: Interval
+    cpk_ci: Interval
+    cpm_ci: Interval
+    pp_ci: Interval
+    ppk_ci: Interval
+    confidence: float
+    convention: str
+    n_subgroups: int | None = None
+    subgroup_size: int | None = None
+    bayes: BayesCapability | None = None
+    # raw statistics kept for predictions (before gauge subtraction)
+    sd_overall_observed: float = math.nan
+    sd_within_observed: float = math.nan
+
+    def table(self) -> list[dict]:
+        """One row per index: `index, value, lower, upper` (and Bayesian columns)."""
+        rows = []
+        for name in ("cp", "cpl", "cpu", "cpk", "cpm", "pp", "ppk"):
+            ci = getattr(self, f"{name}_ci")
+            row = {
+                "index": name,
+                "value": getattr(self, name),
+                "lower": ci.lower,
+                "upper": ci.upper,
+            }
+            if self.bayes is not None and name in ("cp", "cpk", "cpm"):
+                b = self.bayes
+                row["bayes_median"] = getattr(b, name)
+                bi = getattr(b, f"{name}_interval")
+                row["bayes_lower"], row["bayes_upper"] = bi.lower, bi.upper
+            rows.append(row)
+        return rows
+
+    def __repr__(self) -> str:
+        lines = [
+            f"CapabilityResult(n={self.n}, mean={self.mean:.6g}, "
+            f"sigma_within={self.sigma_within:.4g}"
+            f" [{self.sigma_method}, df={self.df_within:.1f}], sigma_overall="
+            f"{self.sigma_overall:.4g}, spec=[{self.lsl}, {self.usl}], target={self.target},"
+            f" {self.confidence:.0%} intervals, convention={self.convention!r})"
+        ]
+        for name in ("cp", "cpk", "cpm", "pp", "ppk"):
+            v = getattr(self, name)
+            if not math.isnan(v):
+                lines.append(f"  {name.capitalize():4s} {v:8.4f} {getattr(self, name + '_ci')!r}")
+        if self.bayes is not None:
+            lines.append(f"  {self.bayes!r}")
+        return "\n".join(lines)
+
+
+def _gauge_adjust(sigma: float, df: float, gauge_sd: float, what: str) -> tuple[float, float]:
+    if gauge_sd == 0.0:
+        return sigma, df
+    var_p = sigma**2 - gauge_sd**2
+    if var_p <= 0.0:
+        raise AnalysisError(
+            f"gauge variance ({gauge_sd:.3g}^2) is not smaller than the observed {what} variance "
+            f"({sigma:.3g}^2): the measurement system cannot resolve this process"
+        )
+    return math.sqrt(var_p), df * (var_p / sigma**2) ** 2
+
+
+def capability(
+    data,
+    lsl: float | None = None,
+    usl: float | None = None,
+    *,
+    target: float | None = None,
+    subgroups=None,
+    sigma_method: str = "auto",
+    confidence: float = 0.95,
+    gauge_sd: float = 0.0,
+    convention: Convention = "piecs",
+    bayes: bool = True,
+    threshold: float = 1.33,
+    n_draws: int = 200_000,
+    seed: int = 0,
+) -> CapabilityResult:
+    """Capability indices Cp, Cpk, Cpm (within sigma) and Pp, Ppk (overall sigma).
+
+    **Arguments:**
+
+    - `data`: values of one characteristic (mm), see [`sigma_within`][] for layouts.
+    - `lsl`, `usl`: specification limits (one may be `None`); `target` defaults to
+      their mid-point (Cpm needs both limits).
+    - `sigma_method`, `convention`: see [`sigma_within`][] and the module docstring.
+    - `confidence`: level of the two-sided confidence and credible intervals.
+    - `gauge_sd`: standard deviation of the measurement (repeatability) to subtract.
+    - `bayes`: also compute posterior medians/intervals and $P(C_{pk} >$ `threshold`$)$
+      from `n_draws` draws (seeded by `seed`).
+
+    **Returns:** a [`CapabilityResult`][].
+
+    Raises `InputError` for bad data or limits and `AnalysisError` when the gauge
+    variance swallows the process variance.
+    """
+    _check_options(convention, confidence, gauge_sd)
+    lsl, usl, target = _limits(lsl, usl, target)
+    y, groups = _as_groups(data, subgroups)
+    n = int(y.size)
+    mu = float(np.mean(y))
+    est, s_all = _observed_sigmas(y, groups, sigma_method, convention)
+    sig_w, nu_w = _gauge_adjust(est.value, est.df, gauge_sd, "within")
+    sig_o, nu_o = _gauge_adjust(s_all, float(n - 1), gauge_sd, "overall")
+    within = _indices(mu, sig_w, lsl, usl, target)  # cp, cpl, cpu, cpk, cpm
+    overall = _indices(mu, sig_o, lsl, usl, target)  # pp, ppl, ppu, ppk, (cpm)
+    intervals = _confidence_intervals(
+        within, overall, n, mu, target, sig_w, nu_w, nu_o, confidence, convention
+    )
+    bayes_res = (
+        _bayes_capability(y, lsl, usl, target, gauge_sd, confidence, threshold, n_draws, seed)
+        if bayes
+        else None
+    )
+    return CapabilityResult(
+        n=n,
+        mean=mu,
+        sigma_within=sig_w,
+        sigma_overall=sig_o,
+        sigma_method=est.method,
+        df_within=nu_w,
+        df_overall=nu_o,
+        gauge_sd=float(gauge_sd),
+        lsl=lsl,
+        usl=usl,
+        target=target,
+        **dict(zip(("cp", "cpl", "cpu", "cpk", "cpm"), within, strict=True)),
+        **dict(zip(("pp", "ppl", "ppu", "ppk"), overall[:4], strict=True)),
+        **intervals,
+        confidence=confidence,
+        convention=convention,
+        n_subgroups=None if groups is None else len(groups),
+        subgroup_size=_common_size(groups),
+        bayes=bayes_res,
+        sd_overall_observed=s_all,
+        sd_within_observed=est.value,
+    )
+
+
+def _check_options(convention: str, confidence: float, gauge_sd: float) -> None:
+    _check_convention(convention)
+    if not 0.0 < confidence < 1.0:
+        raise InputError(f"confidence must be in (0, 1), got {confidence!r}", value=confidence)
+    if not (math.isfinite(gauge_sd) and gauge_sd >= 0.0):
+        raise InputError(f"gauge_sd must be a finite number >= 0, got {gauge_sd!r}", value=gauge_sd)
+
+
+def _observed_sigmas(y, groups, method, convention) -> tuple[SigmaEstimate, float]:
+    """The within-sigma estimate and the overall sample sd, before any gauge subtraction."""
+    est = sigma_within(y if groups is None else groups, method=method, convention=convention)
+    s_all = float(np.std(y, ddof=1))
+    if est.value <= 0.0 or s_all <= 0.0:
+        raise AnalysisError("all values are equal: the process standard deviation is zero")
+    return est, s_all
+
+
+def _common_size(groups) -> int | None:
+    """The subgroup size when all subgroups have one, else None (also for individuals)."""
+    if groups is None or len({g.size for g in groups}) != 1:
+        return None
+    return int(groups[0].size)

@@ -1,0 +1,128 @@
+"""Report section on a capability study: indices with their intervals, the
+Bayesian Cpk, stability findings and the charts."""
+
+from __future__ import annotations
+
+from ..figures import capability_chart_figure, capability_index_figure
+from .model import _ci, _f, _Fig, _Para, _Pre, _Table
+
+#: the drawn coordinate in a table cell
+_ON = {"diameter": "Ø", "radius": "R", "length": "Z", "normal": "normal"}
+
+
+def _index_row(fc) -> list[str]:
+    """A feature's classical indices with their confidence intervals (lengths in µm as
+    drawn, on the feature's coordinate)."""
+    c = fc.capability
+    lo, hi = fc.tolerance
+    return [
+        fc.feature,
+        _ON.get(fc.coordinate, fc.coordinate),
+        fc.characteristic,
+        str(c.n),
+        f"{lo * 1e3:+g} … {hi * 1e3:+g}",
+        _f(c.mean, "+.2f"),
+        _f(c.sigma_within, ".2f"),
+        _f(c.sigma_overall, ".2f"),
+        f"{c.cp:.2f} {_ci(c.cp_ci)}",
+        f"{c.cpk:.2f} {_ci(c.cpk_ci)}",
+        f"{c.pp:.2f} {_ci(c.pp_ci)}",
+        f"{c.ppk:.2f} {_ci(c.ppk_ci)}",
+    ]
+
+
+def _after_row(fc) -> list[str]:
+    """A feature's Bayesian Cpk, stability and the Cpk predicted after compensation."""
+    b, p, pw, s = fc.capability.bayes, fc.predicted, fc.predicted_within, fc.stability
+    stab = "in control" if s.in_control else f"{len(s.out_of_control)}/{s.n} flagged"
+    if fc.step_part:
+        stab += f", step before {fc.step_part}"
+    return [
+        fc.feature,
+        "–" if b is None else f"{b.cpk:.2f} {_ci(b.cpk_interval)}",
+        "–" if b is None else f"{b.p_cpk_above:.3f}",
+        stab,
+        f"{p.cpk:.2f} {_ci(p.cpk_ci)}",
+        f"{pw.cpk:.2f} {_ci(pw.cpk_ci)}",
+    ]
+
+
+def _capability_section(res) -> list:
+    cap = res.capability
+    if cap is None:
+        why = res.unavailable.get("capability", "switched off")
+        return [_Para(f"No capability study: {why}", "note")]
+    rows = [_index_row(fc) for fc in cap.features.values()]
+    rows2 = [_after_row(fc) for fc in cap.features.values()]
+    lvl = f"{cap.confidence:.0%}"
+    findings = []
+    for fc in cap.features.values():
+        for line in fc.findings() + list(fc.notes):
+            findings.append(f"{fc.feature}: {line}")
+    findings += list(cap.notes)
+    thr = next(
+        (fc.capability.bayes.threshold for fc in cap.features.values() if fc.capability.bayes),
+        1.33,
+    )
+    blocks = [
+        _Para(
+            f"{len(cap.parts)} parts ({cap.parts[0]} … {cap.parts[-1]}), fits {cap.method}; "
+            "values: the deviation at each feature's characteristic point, as drawn (on the "
+            "diameter Ø for diameters, on Z for faces, along the normal for tapers and arcs), "
+            "with the tolerance on the same coordinate."
+        ),
+        _Table(
+            [
+                "feature",
+                "on",
+                "at",
+                "n",
+                "tolerance (µm)",
+                "mean (µm)",
+                "σ within (µm)",
+                "σ overall (µm)",
+                f"Cp [{lvl} CI]",
+                f"Cpk [{lvl} CI]",
+                f"Pp [{lvl} CI]",
+                f"Ppk [{lvl} CI]",
+            ],
+            rows,
+            caption="Capability indices: Cp = tolerance width / 6σ (does the spread fit the "
+            "tolerance?), Cpk the same from the nearer limit (centring counts); 1.33 is the "
+            "usual minimum. Cp, Cpk use the within-run σ (from the moving range of successive "
+            "parts), Pp, Ppk the overall σ (drift and steps included). CI: confidence interval "
+            "(chi-square and Bissell).",
+        ),
+        _Table(
+            [
+                "feature",
+                "Bayes Cpk [CrI]",
+                f"P(Cpk > {thr:g})",
+                "stability",
+                f"Cpk after [{lvl} CI]",
+                f"if stable [{lvl} CI]",
+            ],
+            rows2,
+            caption="Bayes: Cpk from the posterior of the mean and the overall σ (independent "
+            "normal values, prior 1/σ) with its equal-tailed credible interval (CrI) and the "
+            "probability that Cpk exceeds the threshold. 'Cpk after': the mean moved to the "
+            "target by the compensation, overall spread kept; 'if stable': with the within "
+            "spread (if compensation also removed drift and steps).",
+        ),
+    ]
+    if findings:
+        blocks.append(_Pre(findings, caption="Stability findings and notes"))
+    blocks += [
+        _Fig(
+            "capability_chart",
+            lambda: capability_chart_figure(cap),
+            "Individuals charts over the run (production order) with control limits, "
+            "tolerance and the most likely step.",
+        ),
+        _Fig(
+            "capability_indices",
+            lambda: capability_index_figure(cap),
+            "Capability indices with their intervals, and the Cpk predicted after compensation.",
+        ),
+    ]
+    return blocks

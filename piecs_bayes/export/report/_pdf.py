@@ -1,0 +1,94 @@
+"""The report as PDF: A4 landscape pages drawn with matplotlib (`_pdf_flow`). The
+verdict fills the first page; then the sections follow each other, text, tables
+(with pass/fail colours) and figures flowed so that no page is left nearly empty."""
+
+from __future__ import annotations
+
+import io
+import itertools
+
+from ..figures import RC
+from ._pdf_blocks import FigurePiece, keep_height, place_block, place_heading
+from ._pdf_flow import BODY, TITLE, Flow, render_pages, text_op
+from ._sections import _sections
+from .model import _Fig, _PageBreak
+
+__all__ = ["report_pdf"]
+
+
+def _place_section(flow: Flow, head: str, blocks, on_figure, numbers) -> None:
+    """A section: its heading, then its blocks; a figure that does not fit the page
+    (or comes after one that waits) floats to the top of the next page."""
+    figures = {}
+    for i, b in enumerate(blocks):
+        if isinstance(b, _Fig):
+            fig = b.make()
+            if on_figure is not None:
+                on_figure(b.name, fig)
+            n = next(numbers)
+            caption = f"Figure {n} (section {head}). {b.caption}"
+            figures[i] = FigurePiece(fig, caption, full=b.full, shrink=b.shrink)
+    text = [i for i, b in enumerate(blocks) if i not in figures and not isinstance(b, _PageBreak)]
+    keep = keep_height(blocks[text[0]]) if text else 1.0
+    if figures and min(figures) < (text[0] if text else len(blocks)):
+        keep = min(keep, figures[min(figures)].smallest)  # a figure first: it may float
+    place_heading(flow, head, keep)
+    for i, b in enumerate(blocks):
+        if isinstance(b, _PageBreak):
+            flow.new_page()
+        elif i in figures:
+            if flow.floats or not figures[i].fits(flow):
+                flow.floats.append(figures[i])
+            else:
+                figures[i].place(flow)
+        else:
+            place_block(flow, b)
+
+
+def _layout(res, sections, on_figure=None) -> Flow:
+    """Every section's blocks placed on pages (figures drawn here, once)."""
+    flow = Flow()
+    h, title = text_op([f"piecs_bayes report: {res.study.name}"], TITLE, weight="bold")
+    flow.place(h + 0.04, title)
+    h, sub = text_op(
+        [f"part {res.part or '–'} · {res.created} · lengths in mm, deviations in µm"],
+        BODY,
+        color="0.35",
+    )
+    flow.place(h + 0.05, sub)
+    numbers = itertools.count(1)
+    for k, (_, t, blocks) in enumerate(sections, start=1):
+        _place_section(flow, f"{k}. {t}", blocks, on_figure, numbers)
+    flow.flush()
+    return flow
+
+
+def _pdf_pages(res, sections, on_figure=None):
+    """Yield the PDF's pages as Figures (and call `on_figure(name, fig)` for figures)."""
+    flow = _layout(res, sections, on_figure)
+    footer = f"piecs_bayes report · {res.study.name} · part {res.part or '–'} · {res.created}"
+    yield from render_pages(flow.pages, footer)
+
+
+def _pdf(pages, res) -> bytes:
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    buf = io.BytesIO()
+    meta = {
+        "Title": f"piecs_bayes report: {res.study.name}",
+        "Author": "piecs_bayes",
+        "Subject": f"part {res.part}",
+        "Creator": f"piecs_bayes {res.versions.get('piecs_bayes', '')}",
+    }
+    with PdfPages(buf, metadata=meta) as pdf:
+        for fig in pages:
+            pdf.savefig(fig)
+    return buf.getvalue()
+
+
+def report_pdf(res) -> bytes:
+    """The report as PDF bytes (A4 landscape; the verdict first)."""
+    from matplotlib import rc_context
+
+    with rc_context(RC):
+        return _pdf(_pdf_pages(res, _sections(res)), res)

@@ -1,0 +1,567 @@
+"""Part-to-part tracking of one feature characteristic over a production run.
+
+The parts of a run are cut one after the other by the same program; $y_k$ is the
+measured normal deviation of part $k$ (mm, + = material left) with its standard
+uncertainty $u_k$ from the part's own fit. The model (a local linear trend with
+switching, Harrison & Stevens 1976; Durbin & Koopman 2012, ch. 3):
+
+$$y_k = \\ell_k + \\varepsilon_k + \\eta_k,\\qquad \\eta_k \\sim N(0, u_k^2),\\quad
+\\varepsilon_k \\sim N(0, \\sigma_e^2) + [s_k = \\text{odd}]\\,N(0, \\sigma_o^2),$$
+
+$$\\ell_{k+1} = \\ell_k + d_k + w_k + J_{k+1},\\qquad d_{k+1} = d_k + v_k,\\qquad
+w_k \\sim N(0, \\sigma_\\ell^2),\\ v_k \\sim N(0, \\sigma_d^2),$$
+
+with $\\ell_k$ the level (the systematic deviation the program cuts, what a correction
+acts on), $d_k$ the drift per part (tool wear), $\\varepsilon_k$ the part-to-part
+scatter (`scatter_sd`, not carried over), $\\eta_k$ the measurement error, and a level
+jump $J \\sim N(0, \\sigma_s^2)$ (`step_sd`) at every declared tool change and, with
+prior probability `step_prob`, at any other part (an undeclared step: detection). A
+declared tool change also removes the wear of the old edge: a new insert starts
+unworn, $\\ell_t = \\ell_{t-1} + d\\,(1 - \\rho m) + J$ with $m$ the parts cut since the
+previous change or the run's first part (taken to be cut with a fresh edge) and $\\rho$
+= `wear_reset` (`_tracking_filter`). An odd part (a chip, a clamping error) has
+probability `outlier_prob` and adds $N(0, \\sigma_o^2)$ (`outlier_scale`) to its
+observation only: a two-component scale mixture, the heavy tail that keeps an odd
+part from being followed. The drift starts $N(\\mu_{d0}, \\sigma_{d0}^2)$
+(`drift0_mean`, `drift0_sd`); the level of part 0 is diffuse (or
+$N(0, \\sigma_{\\ell0}^2)$ with `level0_sd`).
+
+**Inference.** Given the indicators the model is linear Gaussian: Kalman filter and
+RTS smoother exactly. Over the indicators the exact posterior is a mixture of $3^n$
+Gaussians; it is collapsed after each part (`_tracking_filter`) to one Gaussian per
+*recent event*: none, the last part odd, or an undeclared step $j$ parts ago
+($j < $ `STEP_MEMORY` = 6). An odd part is thus judged with one part of hindsight (the
+next part is back on the level), a step with up to six (GPB2, Bar-Shalom & Li, is the
+special case of one part: it merged a step that the next part could not confirm
+into the level, widening its variance, and the filter then followed the scatter of
+the next parts; on runs without steps that cost about 0.4 % RMS, and against all
+$3^7$ indicator sequences of a 7-part run the longer memory gives the exact log
+evidence and step probabilities to < 0.01, where GPB2 was off by 0.12-0.15 and
+0.2-0.4, see the tests).
+We chose this over a Rao-Blackwellised particle filter because it is deterministic
+(replays are reproducible, tests exact), it is exact when no indicator is in doubt
+(the Gaussian model, `step_prob = outlier_prob = 0`), and it vectorises over runs and
+hyper-parameters at the cost of 24 Kalman updates per part; what it loses is the
+joint ambiguity of two odd events in a row, which at the prior probabilities used (a
+few %) is rare. The smoothed level uses the indicators' posterior probabilities as
+expected precisions (see `smoother`).
+
+**Hyper-parameters (empirical Bayes).** $\\sigma_e, \\sigma_\\ell, \\mu_{d0},
+\\sigma_{d0}, \\sigma_d, \\phi$, `outlier_prob` and `step_prob` are chosen on a fixed
+grid (`HYPER_GRID`, 540 points) by their marginal likelihood
+$\\prod_k p(y_k \\mid y_{<k})$ (the filter's predictive densities) times the grid's
+prior (`GRID_LOG_PRIOR`):
+
+- scatter 0.3 to 16 µm in 9 log steps, uniform;
+- level walk 0, 0.2 or 1 µm per part (0.45, 0.45, 0.1: thermal wander, and a level
+  that moves by about a micrometre a part);
+- drift: none (0.45); **wear** (0.35): flank wear only ever leaves material (+), so
+  its rate is half-normal with scale 0.3 µm/part, represented by the normal with the
+  same mean and sd, $N(0.24, 0.18^2)$ µm/part; a drift of **either sign** (0.05,
+  $N(0, 0.3^2)$: a thermal drift); a **new edge** (0.10): fast wear that slows,
+  $N(1.2, 0.8^2)$ µm/part decaying by $\\phi = 0.95$ per part with a rate walk of
+  0.05 µm/part per part (a power law of the parts on the edge is followed by it);
+  a **transient** of either sign (0.05: a warm-up), $N(0, 6^2)$ µm/part decaying by
+  $\\phi = 0.6$ (an exponential approach over a few parts);
+- odd parts 0.2 % or 5 % of the parts (0.8 / 0.2: odd parts are a priori rare);
+- undeclared steps 0.5 % or 2 % per part (1/2 each: how often an insert chips or is
+  changed unlogged is a property of the process, weighed by the evidence like the
+  odd-part rate; a run without steps moves to the lower rate, which follows the
+  scatter less).
+
+Issue 28 widened the grid of issue 17 (216 points: level walk 0 / 0.2, drift none /
+wear / either sign 1/2, 7/16, 1/16), which could not follow a process faster than
+its wear prior (on a warm-up and on a new edge's wear it was 7-10 % worse than the
+tuned EWMA; docs/feedback.md); the fast options cost about 0.5 % RMS on the slow
+scenarios.
+
+Why this prior and not a uniform one: a run of 50 parts hardly tells a small drift
+from none before part 15-20, so until then the prediction is the prior's mixture, and
+every model that is not the process costs RMS. The former grid gave 2/3 of its prior
+to drift models (one symmetric, wasting half its mass on negative wear, one with a
+wear rate wandering by 0.03 µm/part per part, which 50 parts cannot tell from a
+constant one) and a fixed 2 % step rate; on runs with neither drift nor steps that
+cost 3 % RMS over the true model, on slow wear 1.7 % (docs/feedback.md).
+
+`fit_track_model` returns the most probable point; `track` with `model=None` averages
+the grid (Bayesian model averaging) with weights from the parts before each part, so
+that every one-step-ahead predictive uses only earlier parts. The step size (10 µm)
+and the size of an odd part (40 µm) are prior knowledge of a turning centre, not
+estimated. The grid is finite and its smallest scatter is 0.3 µm: a run of one part
+gives a finite answer.
+
+**Transfer.** When the tracked values are semifinish deviations, the finish cut
+shows $\\beta$ times them (`fit_transfer`, from finished parts): the next-part
+predictive handed to a decision is $\\beta\\,\\ell$ with $u^2 = \\beta^2 v +
+u_\\beta^2 m^2$.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from .. import _config
+from ..errors import InputError
+from ._filter import mixture_filter, smoother
+from ._mixture import mixture_cdf, mixture_quantile
+
+optimize = _config.LazyModule("scipy.optimize")
+special = _config.LazyModule("scipy.special")
+
+__all__ = [
+    "GRID_LOG_PRIOR",
+    "HYPER_GRID",
+    "Track",
+    "TrackModel",
+    "fit_track_model",
+    "fit_transfer",
+    "track",
+]
+
+_UM = 1e-3
+
+
+@dataclass(frozen=True)
+class TrackModel:
+    """Hyper-parameters of the tracking model (mm and mm per part; see the module doc).
+
+    - `level_sd`: random walk of the level per part ($\\sigma_\\ell$).
+    - `drift_sd`: random walk of the drift per part ($\\sigma_d$, mm/part per part).
+    - `scatter_sd`: part-to-part scatter not carried over ($\\sigma_e$), on top of each
+      part's measurement uncertainty.
+    - `step_sd`: sd of a level step at a tool change ($\\sigma_s$).
+    - `step_prob`: prior probability of an undeclared step at a part.
+    - `outlier_prob`: prior probability that a part is odd.
+    - `outlier_scale`: sd added to an odd part's observation ($\\sigma_o$).
+    - `drift0_sd`: prior sd of the drift of the first part ($\\sigma_{d0}$, mm/part).
+    - `drift0_mean`: its prior mean ($\\mu_{d0}$, mm/part; + = material left grows).
+    - `level0_sd`: prior sd of the level of part 0; `None`: diffuse.
+    - `wear_reset`: the share of the wear of the old edge a declared tool change
+      removes ($\\rho$: 1, a new edge starts unworn; 0, the change is a step only).
+    - `drift_decay`: $\\phi$ in $d_{k+1} = \\phi d_k + v_k$, in (0, 1]: 1 a wear rate
+      that persists; below 1 a transient (a warm-up, a new edge's fast initial wear)
+      whose rate decays by $\\phi$ per part.
+    """
+
+    level_sd: float
+    drift_sd: float
+    scatter_sd: float
+    step_sd: float = 0.010
+    step_prob: float = 0.02
+    outlier_prob: float = 0.02
+    outlier_scale: float = 0.030
+    drift0_sd: float = 0.001
+    drift0_mean: float = 0.0
+    level0_sd: float | None = None
+    wear_reset: float = 1.0
+    drift_decay: float = 1.0
+
+    def __post_init__(self):
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if v is None and f.name == "level0_sd":
+                continue
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise InputError(f"track model {f.name!r} must be a finite number, got {v!r}")
+            if (v < 0 and f.name != "drift0_mean") or (f.name == "level0_sd" and v == 0):
+                raise InputError(f"track model {f.name!r} must be >= 0 (> 0), got {v!r}")
+        if not 0 < self.drift_decay <= 1:
+            raise InputError(f"track model 'drift_decay' must be in (0, 1], got "
+                             f"{self.drift_decay!r}")  # fmt: skip
+        if self.step_prob + self.outlier_prob >= 1:
+            raise InputError("track model: step_prob + outlier_prob must be < 1")
+
+    def as_dict(self) -> dict:
+        """The fields as a flat dict (mm), for JSON."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+_GRID_SCATTER = (0.3, 0.6, 1.0, 1.6, 2.5, 4.0, 6.5, 10.0, 16.0)  # µm
+_GRID_LEVEL = ((0.0, 0.45), (0.2, 0.45), (1.0, 0.1))  # µm per part, prior weight
+_WEAR = 0.3  # µm/part: the scale of a wear rate (half-normal)
+_GRID_DRIFT = (  # (drift0_mean µm/part, drift0_sd µm/part, drift_sd, drift_decay), weight
+    ((0.0, 0.0, 0.0, 1.0), 0.45),  # no drift
+    ((_WEAR * math.sqrt(2 / math.pi), _WEAR * math.sqrt(1 - 2 / math.pi), 0.0, 1.0), 0.35),
+    ((0.0, _WEAR, 0.0, 1.0), 0.05),  # a drift of either sign (thermal)
+    ((1.2, 0.8, 0.05, 0.95), 0.10),  # a new edge: fast wear, slowing
+    ((0.0, 6.0, 0.0, 0.6), 0.05),  # a transient of either sign (warm-up)
+)
+_GRID_ODD = ((0.002, 0.8), (0.05, 0.2))  # (outlier_prob, prior weight)
+_GRID_STEP = ((0.005, 0.5), (0.02, 0.5))  # (step_prob, prior weight)
+
+
+def _grid_points():
+    return itertools.product(_GRID_SCATTER, _GRID_LEVEL, _GRID_DRIFT, _GRID_ODD, _GRID_STEP)
+
+
+def _grid() -> tuple[TrackModel, ...]:
+    return tuple(
+        TrackModel(
+            level_sd=lv * _UM, drift_sd=dsd * _UM, scatter_sd=sc * _UM, drift0_sd=d0 * _UM,
+            drift0_mean=mu * _UM, drift_decay=phi, outlier_prob=po, outlier_scale=40 * _UM,
+            step_prob=ps, step_sd=10 * _UM,
+        )
+        for sc, (lv, _), ((mu, d0, dsd, phi), _), (po, _), (ps, _) in _grid_points()
+    )  # fmt: skip
+
+
+def _grid_log_prior() -> np.ndarray:
+    w = [wl * wd * wo * ws for _, (_, wl), (_, wd), (_, wo), (_, ws) in _grid_points()]
+    lp = np.log(np.asarray(w) / np.sum(w))
+    lp.flags.writeable = False
+    return lp
+
+
+HYPER_GRID: tuple[TrackModel, ...] = _grid()
+"""The empirical-Bayes grid of [`TrackModel`][]s (see the module doc)."""
+
+GRID_LOG_PRIOR: np.ndarray = _grid_log_prior()
+"""Log prior weights of `HYPER_GRID` (see the module doc): uniform over the scatter;
+level walk 0 / 0.2 / 1 µm/part 0.45, 0.45, 0.1; drift none / wear / either sign / new
+edge / transient 0.45, 0.35, 0.05, 0.10, 0.05; odd-part rate 0.2 % / 5 % 0.8 / 0.2;
+undeclared-step rate 0.5 % / 2 % 1/2 each."""
+
+
+@dataclass(frozen=True)
+class Track:
+    """Tracking of one characteristic over a run (arrays per part, mm; see the module doc).
+
+    - `pred_mean`, `pred_sd`: one-step-ahead predictive of $y_k$ given parts $< k$, its
+      regular component (no new odd part or step); NaN for part 0 with a diffuse start.
+    - `pred_lo`, `pred_hi`: the central 95 % interval of the full predictive mixture.
+    - `pred_weights`, `pred_means`, `pred_sds`: `(n, C)`, that mixture.
+    - `level`, `level_sd`: filtered level (given parts $\\le k$).
+    - `smooth_level`, `smooth_level_sd`: smoothed level (given the whole run).
+    - `p_outlier`, `p_step`: posterior probability that part $k$ is odd (given parts
+      $\\le k + 1$) / starts a step (given parts $\\le k + 6$, `STEP_MEMORY`); the last
+      parts given those there are.
+    - `next_mean`, `next_sd`: the level of the next part (n) as the finish cut will see
+      it (times the transfer coefficient), what a decision acts on; `next_part_sd`
+      adds the scatter of one part.
+    - `steps`: indices of the steps (declared ones and those with `p_step` > 0.5).
+    - `model`: the model used (the grid's best when averaged); `weights`: grid weights
+      after the run (`None` for a fixed model); `loglik`: log marginal likelihood.
+    """
+
+    pred_mean: np.ndarray
+    pred_sd: np.ndarray
+    pred_lo: np.ndarray
+    pred_hi: np.ndarray
+    pred_weights: np.ndarray
+    pred_means: np.ndarray
+    pred_sds: np.ndarray
+    level: np.ndarray
+    level_sd: np.ndarray
+    smooth_level: np.ndarray
+    smooth_level_sd: np.ndarray
+    p_outlier: np.ndarray
+    p_step: np.ndarray
+    next_mean: float
+    next_sd: float
+    next_part_sd: float
+    steps: tuple[int, ...]
+    tool_changes: tuple[int, ...]
+    model: TrackModel
+    weights: np.ndarray | None
+    loglik: float
+    transfer: tuple[float, float] = (1.0, 0.0)
+
+    @property
+    def n(self) -> int:
+        return int(self.level.size)
+
+    def pit(self, values) -> np.ndarray:
+        """The predictive cdf at `values` per part (probability integral transform)."""
+        v = np.asarray(values, dtype=float)
+        return mixture_cdf(v, self.pred_weights, self.pred_means, self.pred_sds)
+
+    def __repr__(self) -> str:
+        steps = ", ".join(str(s) for s in self.steps) or "none"
+        return (
+            f"Track({self.n} parts: next level {self.next_mean * 1e3:+.2f} ± "
+            f"{self.next_sd * 1e3:.2f} µm, steps at {steps}, "
+            f"{int(np.sum(self.p_outlier > 0.5))} odd parts)"
+        )
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _checked(values, u, tool_changes, missing: bool = False):
+    """`(y, u, declared)` checked; with `missing`, NaN values are parts not measured
+    (part 0 must be measured) and their `u` may be NaN too."""
+    y = np.asarray(values, dtype=float)
+    uu = np.broadcast_to(np.asarray(u, dtype=float), y.shape).astype(float)
+    if y.ndim != 1 or y.size < 1:
+        raise InputError(f"values must be a 1-D array of at least 1 part, got shape {y.shape}")
+    seen = ~np.isnan(y) if missing else np.ones(y.size, dtype=bool)
+    if not np.all(np.isfinite(y[seen])):
+        raise InputError("values must be finite", value=int(np.sum(~np.isfinite(y[seen]))))
+    if not seen[0]:
+        raise InputError("the first part must be measured (it sets the level)")
+    if not seen.all():  # u of a part not measured: only its predictive's width uses it
+        ok = seen | (np.isfinite(uu) & (uu > 0))
+        uu = np.where(ok, uu, np.nanmedian(np.where(seen, uu, np.nan)))
+    if not (np.all(np.isfinite(uu)) and np.all(uu > 0)):
+        raise InputError("u must be finite numbers > 0 (mm)")
+    declared = np.zeros(y.size, dtype=bool)
+    for t in tool_changes:
+        if isinstance(t, bool) or not isinstance(t, int | np.integer) or not 0 <= t < y.size:
+            raise InputError(f"tool change {t!r} is not a part index in [0, {y.size})", value=t)
+        declared[int(t)] = True
+    return y, uu, declared
+
+
+def _params(models, reps: int = 1) -> dict:
+    """Filter parameters `(reps * G,)` from models (repeated per series, models fastest)."""
+
+    def col(fn):
+        return np.tile(np.array([fn(m) for m in models], dtype=float), reps)
+
+    return {
+        "scatter2": col(lambda m: m.scatter_sd**2),
+        "q_level": col(lambda m: m.level_sd**2),
+        "q_drift": col(lambda m: m.drift_sd**2),
+        "drift0": col(lambda m: m.drift0_sd**2),
+        "drift0_mean": col(lambda m: m.drift0_mean),
+        "step2": col(lambda m: m.step_sd**2),
+        "p_step": col(lambda m: m.step_prob),
+        "p_odd": col(lambda m: m.outlier_prob),
+        "odd2": col(lambda m: m.outlier_scale**2),
+        "level0": col(lambda m: math.inf if m.level0_sd is None else m.level0_sd**2),
+        "wear_reset": col(lambda m: m.wear_reset),
+        "drift_decay": col(lambda m: m.drift_decay),
+    }
+
+
+def run_grid(y, u, declared, models, **kw) -> dict:
+    """The mixture filter (`_tracking_filter`) on every model for a batch of runs.
+
+    **Arguments:**
+
+    - `y`: `(R, n)` (or `(n,)`) values of R runs (mm).
+    - `u`: their standard uncertainties, broadcast to `y` (mm), > 0.
+    - `declared`: `(n,)` or `(R, n)` booleans, True at a declared tool change.
+    - `models`: G [`TrackModel`][]s.
+    - `kw`: passed to the filter (`ahead`, `mixture`).
+
+    **Returns:** the filter's dict with every array shaped `(R, G, ...)`.
+    """
+    y = np.atleast_2d(y)
+    u = np.broadcast_to(np.atleast_2d(u), y.shape)
+    r_, n = y.shape
+    g = len(models)
+    out = mixture_filter(
+        np.repeat(y, g, axis=0),
+        np.repeat(u**2, g, axis=0),
+        _params(models, r_),
+        np.repeat(np.broadcast_to(np.atleast_2d(declared), (r_, n)), g, axis=0),
+        **kw,
+    )
+    return {k: v.reshape((r_, g) + v.shape[1:]) for k, v in out.items()}
+
+
+def grid_weights(loglik: np.ndarray, log_prior=None) -> np.ndarray:
+    """Posterior weights of the grid before each part.
+
+    **Arguments:**
+
+    - `loglik`: `(R, G, n)` log predictive densities of the parts (`run_grid`).
+    - `log_prior`: `(G,)` log prior of the grid points (`None`: uniform).
+
+    **Returns:** `(R, G, n + 1)` weights; column k uses the parts before k (column 0 is
+    the prior, column n uses the whole run).
+    """
+    cum = np.concatenate([np.zeros(loglik.shape[:2] + (1,)), np.cumsum(loglik, axis=2)], 2)
+    if log_prior is not None:
+        cum = cum + np.asarray(log_prior)[None, :, None]
+    return np.exp(cum - special.logsumexp(cum, axis=1, keepdims=True))
+
+
+def level_average(out: dict, wts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The grid-averaged predictive of the level of each part and of the next part.
+
+    **Arguments:** `out`, the dict of `run_grid`; `wts`, the weights of `grid_weights`.
+
+    **Returns:** `(mean, variance)`, each `(R, n + 1)`: column k the level of part k
+    given the parts before it (NaN for a diffuse part 0), column n the next part.
+    """
+    lm = np.concatenate([out["lm"], out["next_m"][:, :, None]], 2)
+    lv = np.concatenate([out["lv"], out["next_v"][:, :, None]], 2)
+    m = np.sum(wts * lm, 1)
+    v = np.sum(wts * (lv + (lm - m[:, None, :]) ** 2), 1)
+    return m, v
+
+
+def predictive_mixture(out: dict, wts: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The grid-averaged one-step-ahead predictive of each part's value, as a mixture.
+
+    **Arguments:** `out`, the dict of `run_grid`; `wts`, the weights of `grid_weights`.
+
+    **Returns:** `(weights, means, sds)`, each `(R, n, G * K)` (K components per model).
+    """
+    r_, g, n, c = out["pm"].shape
+    pw = (out["pw"] * wts[:, :, :n, None]).transpose(0, 2, 1, 3).reshape(r_, n, g * c)
+    pm = out["pm"].transpose(0, 2, 1, 3).reshape(r_, n, g * c)
+    ps = out["ps"].transpose(0, 2, 1, 3).reshape(r_, n, g * c)
+    return pw, pm, ps
+
+
+# --------------------------------------------------------------------------- public
+
+
+def fit_track_model(values, u, *, tool_changes=()) -> TrackModel:
+    """Hyper-parameters of the tracking model by maximum marginal likelihood.
+
+    **Arguments:**
+
+    - `values`: `(n_parts,)` deviations in production order (mm).
+    - `u`: `(n_parts,)` (or one number) their standard uncertainties (mm), > 0.
+    - `tool_changes`: indices of the parts cut with a new tool (declared steps).
+
+    **Returns:** the most probable [`TrackModel`][] of `HYPER_GRID`: the largest
+    $\\prod_k p(y_k \\mid y_{<k})$ times its prior `GRID_LOG_PRIOR` (see the module
+    doc); finite for any run of at least one part.
+    """
+    y, uu, declared = _checked(values, u, tool_changes, missing=True)
+    out = run_grid(y, uu, declared, HYPER_GRID)
+    total = out["loglik"][0].sum(1) + GRID_LOG_PRIOR
+    return HYPER_GRID[int(np.argmax(total))]
+
+
+def _transfer(transfer) -> tuple[float, float]:
+    if isinstance(transfer, tuple | list):
+        beta, u_beta = (float(t) for t in transfer)
+    else:
+        beta, u_beta = float(transfer), 0.0
+    if not (math.isfinite(beta) and math.isfinite(u_beta) and u_beta >= 0):
+        raise InputError(f"transfer must be beta or (beta, u_beta), got {transfer!r}")
+    return beta, u_beta
+
+
+def track(values, u, *, model: TrackModel | None = None, tool_changes=(), transfer=1.0) -> Track:
+    """Filter, smooth and predict one characteristic over a run of parts.
+
+    **Arguments:**
+
+    - `values`: `(n_parts,)` deviations in production order (mm), as cut without
+      feedback correction (subtract any correction applied); NaN for a part not
+      measured (sampled inspection: a prediction step; part 0 must be measured).
+    - `u`: `(n_parts,)` (or one number) their standard uncertainties (mm), > 0.
+    - `model`: the hyper-parameters; `None` averages `HYPER_GRID` with weights from
+      the parts before each part (empirical Bayes, see the module doc).
+    - `tool_changes`: indices of the parts cut with a new tool (declared steps).
+    - `transfer`: $\\beta$ or $(\\beta, u_\\beta)$ from [`fit_transfer`][]: the share of
+      the tracked deviation the finish cut shows; scales `next_mean`, `next_sd`.
+
+    **Returns:** a [`Track`][].
+    """
+    y, uu, declared = _checked(values, u, tool_changes, missing=True)
+    beta, u_beta = _transfer(transfer)
+    models = HYPER_GRID if model is None else (model,)
+    out = run_grid(y, uu, declared, models)
+    n = y.size
+    wts = grid_weights(out["loglik"], GRID_LOG_PRIOR if model is None else None)
+    lmean, lvar = level_average(out, wts)
+    fin = wts[0, :, n]
+    best = models[int(np.argmax(fin))]
+    # regular component of the predictive: level + scatter + measurement, per grid point
+    scat2 = np.array([m.scatter_sd**2 for m in models])[:, None]
+    lv_reg = out["lv"][0] + scat2 + uu[None, :] ** 2
+    pm = lmean[0, :n]
+    pv = np.nansum(wts[0, :, :n] * (lv_reg + (out["lm"][0] - pm) ** 2), 0)
+    pv = np.where(np.isnan(pm), np.nan, pv)
+    # filtered level: weights from parts <= k
+    wf = wts[0, :, 1:]
+    fm = np.sum(wf * out["fm"][0], 0)
+    fv = np.sum(wf * (out["fv"][0] + (out["fm"][0] - fm) ** 2), 0)
+    p_odd = np.sum(fin[:, None] * out["p_lag"][0, :, :, 1], 0)
+    p_step = np.sum(fin[:, None] * out["p_lag"][0, :, :, 2], 0)
+    g = len(models)
+    sm, sv = smoother(
+        np.repeat(y[None], g, 0), np.repeat(uu[None] ** 2, g, 0), _params(models),
+        np.repeat(declared[None], g, 0), out["p_lag"][0, :, :, 1], out["p_lag"][0, :, :, 2],
+    )  # fmt: skip
+    smean = np.sum(fin[:, None] * sm, 0)
+    svar = np.sum(fin[:, None] * (sv + (sm - smean) ** 2), 0)
+    pw, pmx, psx = (a[0] for a in predictive_mixture(out, wts))
+    lo = mixture_quantile(0.025, pw, pmx, psx)
+    hi = mixture_quantile(0.975, pw, pmx, psx)
+    nm, nv = float(lmean[0, n]), float(lvar[0, n])
+    scatter_next = float(np.sum(fin * scat2[:, 0]))
+    steps = tuple(sorted(set(np.flatnonzero(declared).tolist()) | set(
+        np.flatnonzero(p_step > 0.5).tolist())))  # fmt: skip
+    return Track(
+        pred_mean=_ro(pm), pred_sd=_ro(np.sqrt(pv)), pred_lo=_ro(lo), pred_hi=_ro(hi),
+        pred_weights=_ro(pw), pred_means=_ro(pmx), pred_sds=_ro(psx),
+        level=_ro(fm), level_sd=_ro(np.sqrt(fv)),
+        smooth_level=_ro(smean), smooth_level_sd=_ro(np.sqrt(svar)),
+        p_outlier=_ro(p_odd), p_step=_ro(p_step),
+        next_mean=beta * nm,
+        next_sd=math.sqrt(beta**2 * nv + u_beta**2 * nm**2),
+        next_part_sd=math.sqrt(beta**2 * (nv + scatter_next) + u_beta**2 * nm**2),
+        steps=tuple(int(s) for s in steps),
+        tool_changes=tuple(int(t) for t in np.flatnonzero(declared)),
+        model=best,
+        weights=None if model is not None else _ro(fin),
+        loglik=float(special.logsumexp(out["loglik"][0].sum(1) + (0.0 if model is not None
+                                                                    else GRID_LOG_PRIOR))),
+        transfer=(beta, u_beta),
+    )  # fmt: skip
+
+
+def _ro(a) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
+
+
+def fit_transfer(semifinish, finish, u_semi, u_finish) -> tuple[float, float]:
+    """The transfer coefficient $\\beta$: finish deviation $= \\beta\\,\\times$ semifinish.
+
+    Errors in both variables with known uncertainties (Deming's / York's line through
+    the origin): $\\hat\\beta$ minimises
+    $\\chi^2(\\beta) = \\sum_i (f_i - \\beta s_i)^2 / (u_{f,i}^2 + \\beta^2 u_{s,i}^2)$,
+    which is the maximum likelihood estimate when the true semifinish deviations are
+    free parameters; $u_\\beta^2 = 2 / \\chi^{2\\prime\\prime}(\\hat\\beta)$, inflated by
+    the Birge ratio $\\chi^2_\\min/(n-1)$ when that exceeds 1 (scatter beyond the stated
+    uncertainties). The finish deviations are those the finish cut made of the
+    semifinish deviation, without the applied correction.
+
+    **Arguments:**
+
+    - `semifinish`, `finish`: `(n,)` deviations of the same parts (mm), n >= 2.
+    - `u_semi`, `u_finish`: `(n,)` (or one number each) their standard uncertainties.
+
+    **Returns:** `(beta, u_beta)`.
+    """
+    s = np.asarray(semifinish, dtype=float).ravel()
+    f = np.asarray(finish, dtype=float).ravel()
+    us = np.broadcast_to(np.asarray(u_semi, dtype=float), s.shape)
+    uf = np.broadcast_to(np.asarray(u_finish, dtype=float), f.shape)
+    if s.shape != f.shape or s.size < 2:
+        raise InputError("semifinish and finish must be two arrays of the same >= 2 parts")
+    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(f))):
+        raise InputError("semifinish and finish deviations must be finite")
+    if not (np.all(us > 0) and np.all(uf > 0) and np.all(np.isfinite(us + uf))):
+        raise InputError("u_semi and u_finish must be finite numbers > 0")
+    if np.sum((s / us) ** 2) < 1e-12:
+        raise InputError("the semifinish deviations are all zero: beta is not defined")
+
+    def chi2(b):
+        return float(np.sum((f - b * s) ** 2 / (uf**2 + b**2 * us**2)))
+
+    b0 = float(np.sum(f * s / uf**2) / np.sum(s * s / uf**2))
+    span = 10.0 * (abs(b0) + 1.0)
+    res = optimize.minimize_scalar(chi2, bounds=(b0 - span, b0 + span), method="bounded",
+                                   options={"xatol": 1e-12})  # fmt: skip
+    b = float(res.x)
+    h = 1e-4 * (abs(b) + 1e-3)
+    curv = (chi2(b + h) - 2 * chi2(b) + chi2(b - h)) / h**2
+    u_b = math.sqrt(2.0 / curv) if curv > 0 else math.inf
+    birge = chi2(b) / (s.size - 1)
+    return b, u_b * math.sqrt(max(birge, 1.0))

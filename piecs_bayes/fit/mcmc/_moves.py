@@ -1,0 +1,119 @@
+r"""One vocabulary of ensemble moves for every sampler the package offers.
+
+A move set is named once here and means the same mixture in
+[`sample_posterior`][piecs_bayes.fit.sample_posterior] (emcee itself) and in
+[`sample_posteriors`][piecs_bayes.fit.sample_posteriors] (the lockstep
+ensembles, emcee's moves re-implemented in NumPy and JAX):
+
+| name | mixture (drawn per ensemble and step) |
+|---|---|
+| `"stretch"` | Goodman & Weare stretch move, $a = 2$ (emcee's `StretchMove`) |
+| `"de"` | 80 % differential evolution (emcee's `DEMove`), 20 % stretch |
+
+The DE move is emcee's: $q = s + \gamma (c_k - c_l)$, $\gamma = \gamma_0 (1 +
+10^{-5} \xi)$, $\gamma_0 = 2.38/\sqrt{2d}$.
+
+**Why no snooker move.** emcee 3.1.6 (the newest release on the package
+registry) has a biased `DESnookerMove`: its projection direction
+`delta / sqrt(norm)` is not a unit vector, so the proposal is not the
+Ter Braak & Vrugt (2008) snooker update and detailed balance fails. Measured:
+posterior standard deviations about 6 % too small on a conjugate linear model
+(NIST Norris) while every convergence diagnostic said "converged", and 0.978
+instead of 1 on a 3-D standard normal. The move was fixed upstream after that
+release. [`snooker_move_is_sound`][] checks the installed emcee numerically; even
+when it is sound the move is not offered, so that a name means the same
+mixture in both samplers (the lockstep sampler has no snooker move).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...errors import InputError
+
+__all__ = [
+    "MOVES",
+    "DE_FRACTION",
+    "STRETCH_A",
+    "check_moves",
+    "de_gamma0",
+    "emcee_moves",
+    "snooker_move_is_sound",
+]
+
+#: the names a user may pass as ``moves`` (``None`` means ``"stretch"``)
+MOVES = ("stretch", "de")
+#: share of differential-evolution steps in ``"de"`` (the rest are stretch steps)
+DE_FRACTION = 0.8
+#: the stretch move's scale parameter ``a`` (emcee's default)
+STRETCH_A = 2.0
+#: the DE move's relative jitter of gamma (emcee's default ``sigma``)
+DE_SIGMA = 1e-5
+
+
+def de_gamma0(ndim: int) -> float:
+    """The DE move's mean step scale, $2.38/\\sqrt{2d}$ (ter Braak 2006, emcee's default)."""
+    return 2.38 / math.sqrt(2.0 * ndim)
+
+
+def check_moves(moves: str | None) -> str:
+    """The canonical name of a move set; ``None`` is ``"stretch"``. Anything else
+    (``"de_snooker"`` included, see the module doc) is an `InputError`."""
+    name = "stretch" if moves is None else moves
+    if name not in MOVES:
+        hint = (
+            "; the DE snooker move is not offered: emcee 3.1.6's DESnookerMove is biased"
+            if isinstance(name, str) and "snooker" in name.lower()
+            else ""
+        )
+        raise InputError(
+            f"moves: got {moves!r}, expected None, {', '.join(map(repr, MOVES))}{hint}",
+            value=moves,
+        )
+    return name
+
+
+def emcee_moves(moves: str | None):
+    """The emcee ``moves`` argument for a move set name: a list of ``(move, weight)``."""
+    import emcee
+
+    name = check_moves(moves)
+    stretch = emcee.moves.StretchMove(a=STRETCH_A)
+    if name == "stretch":
+        return [(stretch, 1.0)]
+    de = emcee.moves.DEMove(sigma=DE_SIGMA)  # gamma0 default: 2.38 / sqrt(2 d)
+    return [(de, DE_FRACTION), (stretch, round(1.0 - DE_FRACTION, 12))]
+
+
+class _FixedRandom:
+    """A stand-in random state: picks the first walker of each set, never shuffles."""
+
+    @staticmethod
+    def randint(n):
+        return 0
+
+    @staticmethod
+    def shuffle(x):
+        return None
+
+
+def snooker_move_is_sound() -> bool:
+    """Whether the installed emcee's `DESnookerMove` projects on a unit vector.
+
+    One proposal with every random choice fixed: the walker at $(4, 0)$, the
+    snooker centre $z$ at the origin, $z_1 = (1, 0)$, $z_2 = 0$. The correct move
+    is $q = s + \\gamma\\,u\\,(u\\cdot z_1 - u\\cdot z_2)$ with $u = (1, 0)$,
+    i.e. a step of $\\gamma$; emcee 3.1.6 steps $4\\gamma$.
+    """
+    import emcee
+
+    move = emcee.moves.DESnookerMove(gammas=1.0)
+    s = np.array([[4.0, 0.0]])
+    c = [np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]]), np.array([[0.0, 0.0]])]
+    try:
+        q, _ = move.get_proposal(s, c, _FixedRandom())
+    except Exception:  # noqa: BLE001 - another emcee API: treat as unknown, unsound
+        return False
+    return bool(np.allclose(q[0] - s[0], [1.0, 0.0]))
