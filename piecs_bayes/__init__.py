@@ -13,8 +13,8 @@ every subpackage that computes imports `_config` first, which switches JAX to
 float64 before any array is made.
 """
 
-from .errors import AnalysisError, InputError, PiecsError
+from .errors import AnalysisError as AnalysisError
+from .errors import InputError as InputError
+from .errors import PiecsError as PiecsError
 
 __version__ = "0.1.0"
-
-__all__ = ["AnalysisError", "InputError", "PiecsError", "__version__"]

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["PiecsError", "InputError", "AnalysisError", "shown_files"]
-
 
 class PiecsError(Exception):
     """Base class of every error piecs_bayes raises on purpose."""

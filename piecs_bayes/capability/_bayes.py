@@ -20,8 +20,6 @@ from ._indices import _NAN_INTERVAL, Interval
 
 stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 
-__all__ = ["BayesCapability"]
-
 
 @dataclass(frozen=True)
 class BayesCapability:

@@ -56,8 +56,6 @@ from ._bayes import BayesCapability, _bayes_capability
 from ._indices import Interval, _confidence_intervals, _indices, _limits
 from ._sigma import Convention, SigmaEstimate, _as_groups, _check_convention, sigma_within
 
-__all__ = ["CapabilityResult", "capability"]
-
 
 @dataclass(frozen=True)
 class CapabilityResult:

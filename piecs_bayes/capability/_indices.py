@@ -17,8 +17,6 @@ from ..errors import InputError
 
 stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 
-__all__ = ["Interval"]
-
 
 @dataclass(frozen=True)
 class Interval:

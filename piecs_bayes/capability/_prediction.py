@@ -22,8 +22,6 @@ from ._indices import Interval, _bissell, _indices
 
 stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 
-__all__ = ["PredictedCapability", "predict_capability"]
-
 
 @dataclass(frozen=True)
 class PredictedCapability:

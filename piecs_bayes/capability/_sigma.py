@@ -25,7 +25,6 @@ from ..errors import InputError
 integrate = _config.LazyModule("scipy.integrate")
 special = _config.LazyModule("scipy.special")
 
-__all__ = ["SigmaEstimate", "c4_constant", "d2_constant", "sigma_within"]
 
 Convention = Literal["piecs", "qcc"]
 _CONVENTIONS = ("piecs", "qcc")

@@ -18,8 +18,6 @@ import numpy as np
 from ..errors import AnalysisError, InputError
 from ._sigma import _d3_constant
 
-__all__ = ["StabilityResult", "stability_check"]
-
 
 @dataclass(frozen=True)
 class StabilityResult:

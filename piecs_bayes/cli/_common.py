@@ -12,19 +12,6 @@ from pathlib import Path
 
 from . import _types as T
 
-__all__ = [
-    "APPLY_ROUTES",
-    "Console",
-    "add_apply",
-    "add_common",
-    "finish",
-    "fit_from_args",
-    "out_dir",
-    "slug",
-    "subcommand",
-    "write",
-]
-
 
 class Console:
     def __init__(self, quiet: bool):

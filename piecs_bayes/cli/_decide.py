@@ -20,8 +20,6 @@ from pathlib import Path
 from . import _types as T
 from ._common import add_common, fit_from_args, out_dir, subcommand, write
 
-__all__ = ["register"]
-
 EXAMPLES = {
     "decide": "piecs-bayes decide data/demo/study.toml --out reports/decide",
     "capability": "piecs-bayes capability data/batch/study.toml --out reports/capability\n"

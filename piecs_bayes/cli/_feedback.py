@@ -22,8 +22,6 @@ from pathlib import Path
 
 from ._common import add_common, finish, out_dir, subcommand
 
-__all__ = ["register", "cmd_feedback"]
-
 EXAMPLE = (
     "piecs-bayes feedback data/batch/study.toml --out reports/feedback\n"
     '  piecs-bayes feedback data/batch/study.toml --finish "data/batch/finish/*.csv" '

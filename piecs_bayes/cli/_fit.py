@@ -10,8 +10,6 @@ from . import _types as T
 from ._common import add_apply, add_common, finish, fit_from_args, out_dir, subcommand, write
 from ._outputs import bayes_from_args, print_fit, write_bayes, write_bounds, write_fit
 
-__all__ = ["register"]
-
 EXAMPLES = {
     "fit": "piecs-bayes fit data/demo/study.toml --out reports/fit --method robust",
     "compensate": "piecs-bayes compensate data/demo/study.toml --out reports/comp",

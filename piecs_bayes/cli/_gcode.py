@@ -18,8 +18,6 @@ from pathlib import Path
 
 from . import _types as T
 
-__all__ = ["register"]
-
 
 def register(subparsers) -> None:
     """Add the ``gcode`` command group to the CLI's subparsers."""

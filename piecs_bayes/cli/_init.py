@@ -16,8 +16,6 @@ from pathlib import Path
 
 from . import _types as T
 
-__all__ = ["register"]
-
 _CLASSES = ("ISO2768-f", "ISO2768-m", "ISO2768-c", "ISO2768-v")
 
 

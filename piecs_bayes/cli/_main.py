@@ -13,8 +13,6 @@ from ..errors import AnalysisError, InputError
 from . import _decide, _feedback, _fit, _gcode, _init, _plan, _probe_cal, _report
 from ._common import Console
 
-__all__ = ["build_parser", "main"]
-
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import __version__

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 from ._common import write
 
-__all__ = ["bayes_from_args", "print_fit", "write_bayes", "write_bounds", "write_fit", "write_unc"]
-
 
 def bayes_from_args(args, study, probe, fit, console):
     from ..jobs import bayes_study

@@ -18,8 +18,6 @@ from pathlib import Path
 from ..errors import InputError
 from . import _types as T
 
-__all__ = ["register", "read_more"]
-
 
 def register(subparsers) -> None:
     """Add ``plan`` to the CLI's subparsers."""

@@ -10,8 +10,6 @@ from pathlib import Path
 from ..errors import InputError
 from ._common import subcommand
 
-__all__ = ["register"]
-
 EXAMPLE = "piecs-bayes calibrate-probe data/cal/calibration.toml --out probe_cal.json"
 
 

@@ -20,8 +20,6 @@ from . import _types as T
 from ._common import add_apply, add_common, finish, out_dir, subcommand, write
 from ._outputs import print_fit, write_bayes, write_fit, write_unc
 
-__all__ = ["register", "job_options", "run_job_from_args", "write_report"]
-
 EXAMPLE_DEMO = "piecs-bayes demo data/demo/study.toml --out reports/demo"
 EXAMPLE = (
     "piecs-bayes report data/demo/study.toml --out reports/demo-report --nose-radius 0.4\n"

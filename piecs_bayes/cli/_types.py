@@ -7,16 +7,6 @@ import argparse
 import math
 from pathlib import Path
 
-__all__ = [
-    "finite_mm",
-    "gain",
-    "nonneg_int",
-    "nonneg_mm",
-    "positive_float",
-    "positive_int",
-    "positive_mm",
-]
-
 
 def _number(text: str, what: str) -> float:
     try:

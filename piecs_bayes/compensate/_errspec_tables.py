@@ -19,8 +19,6 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["ERRSPEC_FORMAT_VERSION", "CompensationTable", "ErrorSpec"]
-
 #: version of the native error-specification format these data classes map onto
 ERRSPEC_FORMAT_VERSION = 1
 AXES = ("x", "z")

@@ -40,8 +40,6 @@ from ..geometry import (
 )
 from ..io import rows_to_dataframe
 
-__all__ = ["compensated_deviations", "adjusted_geometry", "AdjustedPath", "adjusted_path"]
-
 
 def compensated_deviations(profile: Profile, deviations, gain=1.0):
     """Mirror fitted deviations: ``-gain * dev`` per feature (a tuple in profile order).

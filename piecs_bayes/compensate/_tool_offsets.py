@@ -33,14 +33,6 @@ from typing import Literal
 
 from ..errors import AnalysisError, InputError
 
-__all__ = [
-    "AxisCorrection",
-    "OffsetSettings",
-    "ToolOffsetUpdate",
-    "ToolOffsets",
-    "tool_offset_update",
-]
-
 XMode = Literal["diameter", "radius"]
 
 

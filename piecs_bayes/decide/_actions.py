@@ -47,8 +47,6 @@ from ._settings import DecisionSettings
 optimize = _config.LazyModule("scipy.optimize")
 special = _config.LazyModule("scipy.special")
 
-__all__ = ["ActionLoss"]
-
 
 @dataclass(frozen=True)
 class ActionLoss:

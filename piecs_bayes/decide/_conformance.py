@@ -19,9 +19,6 @@ from .. import _config
 special = _config.LazyModule("scipy.special")
 
 
-__all__ = ["Conformance", "conformance"]
-
-
 @dataclass(frozen=True)
 class Conformance:
     """ISO 14253-1 conformance of a value with standard uncertainty `u`.

@@ -36,7 +36,6 @@ from ._settings import DecisionSettings
 
 special = _config.LazyModule("scipy.special")
 
-__all__: list[str] = []
 
 _GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
 

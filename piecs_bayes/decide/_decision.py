@@ -53,8 +53,6 @@ from ._verdict import Verdict, _Words, clear_verdict, conclude
 
 special = _config.LazyModule("scipy.special")
 
-__all__ = ["Decision", "decide"]
-
 
 @dataclass(frozen=True)
 class Decision:

@@ -8,8 +8,6 @@ from dataclasses import dataclass, fields
 
 from ..errors import InputError
 
-__all__ = ["DecisionSettings", "settings_from_spec"]
-
 
 @dataclass(frozen=True)
 class DecisionSettings:

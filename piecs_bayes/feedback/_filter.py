@@ -48,7 +48,6 @@ from .. import _config
 
 special = _config.LazyModule("scipy.special")
 
-__all__: list[str] = []
 
 _TINY = 1e-300
 _LOG2PI = float(np.log(2.0 * np.pi))

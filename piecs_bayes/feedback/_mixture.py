@@ -15,8 +15,6 @@ from .. import _config
 
 special = _config.LazyModule("scipy.special")
 
-__all__ = ["QUANTILE_TOL", "mixture_cdf", "mixture_quantile"]
-
 
 def mixture_cdf(x, w, m, s):
     """The distribution function at `x` of Gaussian mixtures `(..., C)` of weights `w`,

@@ -70,21 +70,6 @@ from ._tracking import (
     track,
 )
 
-__all__ = [
-    "BAYES_DECISION",
-    "COMPARISONS",
-    "SHOP_SETTINGS",
-    "at_measured",
-    "POLICIES",
-    "TUNING_GRIDS",
-    "PolicyResult",
-    "next_part",
-    "predictive_coverage",
-    "replay",
-    "replay_runs",
-    "tune",
-]
-
 POLICIES = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma", "bayes")
 
 BAYES_DECISION = DecisionSettings(

@@ -38,7 +38,6 @@ from ._tracking import GRID_LOG_PRIOR, HYPER_GRID, _params, grid_weights
 
 special = _config.LazyModule("scipy.special")
 
-__all__: list[str] = []
 
 _CHUNK = 64  # runs filtered at once on the whole grid
 _NO_LIMIT = 1e3  # mm: the decision's own limit, applied by the loop instead (`held`)

@@ -112,15 +112,6 @@ from ._mixture import mixture_cdf, mixture_quantile
 optimize = _config.LazyModule("scipy.optimize")
 special = _config.LazyModule("scipy.special")
 
-__all__ = [
-    "GRID_LOG_PRIOR",
-    "HYPER_GRID",
-    "Track",
-    "TrackModel",
-    "fit_track_model",
-    "fit_transfer",
-    "track",
-]
 
 _UM = 1e-3
 

@@ -58,8 +58,6 @@ from ._batch_solve import (
 from ._features import padded_size
 from ._sigma import DECLARED_DOF
 
-__all__ = ["BatchFit", "CHUNK_PARTS", "fit_profiles"]
-
 #: parts per chunk (progress is reported per chunk)
 CHUNK_PARTS = 1024
 _SOLVERS = ("auto", "fast", "lm", "gauss_newton", "dogleg")

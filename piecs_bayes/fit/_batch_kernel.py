@@ -43,8 +43,6 @@ import numpy as np
 
 from .lsq import Status, analyse, losses, stages, statistics
 
-__all__ = ["kernel_solver", "svd_batch"]
-
 #: Gauss-Newton iterations per stage before giving up (MAX_STEPS_REACHED -> engine)
 MAX_ITER = 60
 #: step halvings tried when a full step raises the objective

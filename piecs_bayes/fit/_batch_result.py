@@ -15,8 +15,6 @@ from ._profile_result import ProfileFit
 from ._sigma import DECLARED_DOF, probe_sigma, sigma_arrays
 from .lsq import COV_OK, LsqResult, Status, flat_structure, is_linear, result_from_arrays
 
-__all__ = ["BatchFit", "Group", "inlier_ss"]
-
 
 @dataclass(frozen=True, eq=False)
 class Group:

@@ -17,9 +17,6 @@ from ._batch_kernel import kernel_solver, svd_batch
 from ._features import feature_residuals, geometry_args
 from .lsq import LsqArrays, Status, solve_arrays
 
-__all__ = ["BATCH", "BATCH_POINTS", "Settings", "batch_rows", "dispatch", "fetch",
-           "geometry_table", "group_solver", "retry_lm"]  # fmt: skip
-
 #: problems per compiled call. One fixed size: every study, chunking and cluster
 #: reuses one compilation per group, and a problem's result does not depend on
 #: which others share its batch. (Padding a small study to it costs milliseconds.)

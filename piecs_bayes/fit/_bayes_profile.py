@@ -46,9 +46,6 @@ from .mcmc import (
     student_t_loglik,
 )
 
-__all__ = ["BayesProfileFit", "profile_log_posterior", "fit_profile_bayes", "fit_profiles_bayes",
-           "NUISANCE_SOURCES"]  # fmt: skip
-
 #: Sources that enter the model as a nuisance parameter (``repeatability`` is sigma).
 NUISANCE_SOURCES = SOURCE_EFFECTS
 

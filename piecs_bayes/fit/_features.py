@@ -29,18 +29,6 @@ from ..errors import InputError
 from ..geometry import Feature, machine_to_part, rotate
 from .lsq import LsqResult, least_squares
 
-__all__ = [
-    "FeatureFit",
-    "arc_distance",
-    "embed_free",
-    "feature_residuals",
-    "fit_feature",
-    "geometry_args",
-    "line_distance",
-    "padded_size",
-    "to_part_frame",
-]
-
 
 def geometry_args(feature: Feature):
     """Nominal geometry of a feature as arrays (data, not static structure), so one

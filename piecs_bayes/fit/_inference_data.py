@@ -63,15 +63,6 @@ from .. import __version__
 from ..geometry import machine_to_part
 from .mcmc import import_arviz
 
-__all__ = [
-    "BayesData",
-    "LOG_LIKELIHOOD_BITS",
-    "PRIOR_DRAWS",
-    "inference_data",
-    "parameter_locations",
-    "write_netcdf",
-]
-
 #: Draws per source in the `prior` group (one chain).
 PRIOR_DRAWS = 2000
 #: Explicit mantissa bits kept of the stored log likelihood (float32's 23).

@@ -22,8 +22,6 @@ from ._profile_result import ProfileFit
 from ._sigma import DECLARED_DOF, probe_sigma
 from .lsq import least_squares
 
-__all__ = ["fit_profile_joint", "TRANSFORM_PARAMS"]
-
 TRANSFORM_PARAMS = ("x_centre", "z_offset", "scale_x", "scale_z", "rotation")
 
 

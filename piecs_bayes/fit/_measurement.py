@@ -28,16 +28,6 @@ import jax.numpy as jnp
 
 from ..geometry import machine_to_part
 
-__all__ = [
-    "CALIBRATION_SOURCE",
-    "RadiusComponents",
-    "SOURCE_EFFECTS",
-    "SOURCE_UNITS",
-    "is_calibration_source",
-    "probe_residuals",
-    "source_unit",
-]
-
 #: Sources that act in the measurement model (``repeatability`` is the noise itself).
 SOURCE_EFFECTS = (
     "ball_radius",

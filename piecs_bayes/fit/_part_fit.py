@@ -29,8 +29,6 @@ from ._profile_result import ProfileFit
 from ._sigma import probe_sigma
 from .lsq import Status, flat_structure, result_from_arrays
 
-__all__ = ["check_feature_ids", "fit_part"]
-
 #: problems per compiled call of a group (residual function, point bucket) of one
 #: part: a part with more features of a group pads to the next multiple
 PART_BATCH = 1

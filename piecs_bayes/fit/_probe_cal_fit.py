@@ -45,15 +45,6 @@ from ._sigma import DECLARED_DOF
 from .lsq import TUNING, least_squares
 from .mcmc import gaussian_loglik, sample_posterior
 
-__all__ = [
-    "AUTO_ORDERS",
-    "COND_LIMIT",
-    "auto_orders",
-    "check_orders",
-    "fit_probe_calibration",
-    "repeatability_check",
-]
-
 #: the condition number (unit-scaled design over the distinct directions) beyond
 #: which orders are refused: a coefficient's uncertainty would be amplified more than
 #: this many times over what the same points evenly spread give

@@ -13,8 +13,6 @@ from ._part_fit import check_feature_ids, fit_part
 from ._profile_result import ProfileFit
 from ._sigma import DECLARED_DOF, pooled_residuals, probe_sigma
 
-__all__ = ["ProfileFit", "fit_profile"]
-
 
 def fit_profile(
     profile: Profile,

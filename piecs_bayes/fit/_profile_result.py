@@ -12,8 +12,6 @@ from ..io import rows_to_dataframe
 from ._features import FeatureFit
 from ._sigma import ProbeSigma
 
-__all__ = ["ProfileFit"]
-
 
 @dataclass(frozen=True, eq=False)
 class ProfileFit:

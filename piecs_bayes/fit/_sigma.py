@@ -36,14 +36,6 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = [
-    "DECLARED_DOF",
-    "ProbeSigma",
-    "coverage_factor",
-    "effective_dof",
-    "probe_sigma",
-]
-
 #: degrees of freedom a declared repeatability is worth by default (relative
 #: standard uncertainty of the declared value ~25 %: nu = 1 / (2 * 0.25^2))
 DECLARED_DOF = 8.0

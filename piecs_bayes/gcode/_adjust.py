@@ -48,14 +48,6 @@ from ..errors import AnalysisError, InputError
 from ..geometry import Arc, Line, Profile
 from ._header import diff_labels, header_checked
 
-__all__ = [
-    "BlockMap",
-    "BlockChange",
-    "ProgramAdjustment",
-    "map_blocks_to_profile",
-    "adjust_program",
-]
-
 
 @dataclass(frozen=True)
 class BlockMap:

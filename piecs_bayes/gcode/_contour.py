@@ -38,8 +38,6 @@ from ..errors import InputError
 from ..geometry import ProfileError, profile_side
 from ._modal import CompSetting, GcodeProgram, Motion
 
-__all__ = ["ContourSegment", "FinishContour", "compensation_runs", "finish_contour"]
-
 
 @dataclass(frozen=True)
 class ContourSegment:

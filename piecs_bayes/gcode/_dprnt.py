@@ -25,8 +25,6 @@ from dataclasses import dataclass
 
 from ..errors import InputError
 
-__all__ = ["DprntFormat", "parse_dprnt", "dprnt_value"]
-
 #: the variables a DPRNT of a gauging program may print: the skip positions
 SKIP_VARIABLES = {5061: "X", 5062: "Z"}
 _ITEM = re.compile(r"#(\d+)\[(\d)(\d)\]")

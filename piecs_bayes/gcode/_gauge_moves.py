@@ -44,8 +44,6 @@ from ..errors import InputError
 from ._dprnt import DprntFormat, parse_dprnt
 from ._lexer import SourceLine, _lex_line, read_text_lossless
 
-__all__ = ["GaugeMove", "GaugeProgram", "gauge_moves", "read_gauge_program"]
-
 MM_PER_INCH = 25.4
 PROBE_CODES = {"linuxcnc": ("G38.2", "G38.3"), "fanuc": ("G31",)}
 _COMMON_G = {

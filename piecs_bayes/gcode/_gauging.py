@@ -31,8 +31,6 @@ from ..errors import InputError
 from ._header import comment_text
 from ._lexer import format_number
 
-__all__ = ["CONTROLLERS", "GAUGING_NAMES", "gauging_program"]
-
 CONTROLLERS = ("linuxcnc", "fanuc")
 #: the gauging program's file name by controller (beside plan.json)
 GAUGING_NAMES = {"linuxcnc": "gauging.ngc", "fanuc": "gauging_fanuc.nc"}

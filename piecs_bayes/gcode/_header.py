@@ -22,8 +22,6 @@ from pathlib import PurePath
 from ..errors import AnalysisError
 from ._lexer import GcodeText, lex_gcode
 
-__all__ = ["comment_style", "comment_text", "with_comment_block", "header_checked", "diff_labels"]
-
 _ACTIVE = ("MSG,", "DEBUG,", "PRINT,", "LOG", "PROBEOPEN", "PROBECLOSE", "AXIS,")
 
 

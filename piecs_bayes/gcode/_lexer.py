@@ -29,17 +29,6 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = [
-    "Word",
-    "Comment",
-    "SourceLine",
-    "GcodeText",
-    "lex_gcode",
-    "read_text_lossless",
-    "format_number",
-    "edit_line",
-]
-
 _EOL = re.compile(r"\r\n|\n|\r")
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)")
 

@@ -41,17 +41,6 @@ from pathlib import Path
 from ..errors import InputError
 from ._lexer import GcodeText, SourceLine, lex_gcode, read_text_lossless
 
-__all__ = [
-    "CompSetting",
-    "ToolWord",
-    "Motion",
-    "CompEvent",
-    "LineState",
-    "GcodeProgram",
-    "read_gcode",
-    "parse_gcode",
-]
-
 MM_PER_INCH = 25.4
 _G_GROUPS = {
     "motion": {"G0", "G1", "G2", "G3", "G80"},

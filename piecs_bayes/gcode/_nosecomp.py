@@ -68,15 +68,6 @@ from ._nosecomp_arc import ArcCornerComp
 from ._nosecomp_base import UniformNose, _left, tip_offset
 from ._nosecomp_extend import _extend, _offset_chain, _Seg
 
-__all__ = [
-    "PathMove",
-    "tip_offset",
-    "compensated_path",
-    "nose_compensate",
-    "NoseCompResult",
-    "correct_radius_error",
-]
-
 
 @dataclass(frozen=True)
 class PathMove:

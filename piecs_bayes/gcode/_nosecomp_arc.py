@@ -95,8 +95,6 @@ from ._nosecomp_base import (
     tip_offset,
 )
 
-__all__ = ["ArcCornerComp", "TANGENT_TURN"]
-
 TANGENT_TURN = 0.05
 _SLACK = 1e-9
 

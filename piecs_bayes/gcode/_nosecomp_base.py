@@ -25,8 +25,6 @@ import math
 
 from ..errors import InputError
 
-__all__ = ["UniformNose", "resolve_setting", "tip_offset"]
-
 _EPS = 1e-12
 _TIP = {
     0: (0, 0),

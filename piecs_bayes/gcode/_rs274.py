@@ -28,8 +28,6 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["CanonMove", "Rs274Result", "rs274_path", "run_rs274"]
-
 _CANON = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_0-9]+)\((.*)\)\s*$")
 
 

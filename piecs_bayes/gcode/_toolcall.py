@@ -27,8 +27,6 @@ from dataclasses import dataclass
 from ..errors import AnalysisError, InputError
 from ..geometry import Profile
 
-__all__ = ["ToolCall", "FinishCutTools", "tool_call", "finish_cut_tools"]
-
 
 @dataclass(frozen=True)
 class ToolCall:

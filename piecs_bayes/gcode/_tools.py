@@ -21,8 +21,6 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["ToolEntry", "read_tool_table", "parse_tool_table"]
-
 _WORD = re.compile(r"\s*([A-Za-z])\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+))")
 _LENGTH_LETTERS = set("XYZUVWD")
 

@@ -18,8 +18,6 @@ from collections import defaultdict
 
 from ._lexer import edit_line
 
-__all__ = ["write_path_program", "move_words"]
-
 _COMP_CODES = {"G40", "G41", "G42", "G41.1", "G42.1"}
 _MOTION_CODES = {"G0", "G1", "G2", "G3"}
 _GCODE = {"rapid": "G0", "feed": "G1", "cw": "G2", "ccw": "G3"}

@@ -30,15 +30,6 @@ import numpy as np
 
 from ._curves import Arc, Feature
 
-__all__ = [
-    "CHORD_ERROR_MM",
-    "ball_centres",
-    "feature_polyline",
-    "path_distance",
-    "point_distance",
-    "probe_window",
-]
-
 #: largest distance of an arc's polyline from the arc (mm)
 CHORD_ERROR_MM = 1e-4
 _WINDOW_SAMPLES = 257

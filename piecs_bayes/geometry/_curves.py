@@ -24,8 +24,6 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-__all__ = ["Arc", "Line", "Feature", "left_normal", "rotate"]
-
 
 def left_normal(d):
     """Unit normal to the left of travel direction ``d`` (drawing frame, CCW by 90 deg)."""

@@ -23,15 +23,6 @@ from __future__ import annotations
 
 import math
 
-__all__ = [
-    "TOLERANCE_ON",
-    "drawn_limits",
-    "drawn_scale",
-    "feature_form",
-    "normal_limits",
-    "tolerance_choices",
-]
-
 #: the coordinates a tolerance can be given on
 TOLERANCE_ON = ("diameter", "radius", "length", "normal")
 

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-__all__ = ["intersect_line_line", "intersect_line_circle", "intersect_circle_circle"]
-
 
 def _cross(a, b):
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]

@@ -32,8 +32,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["ISO2768_CLASSES", "GeneralTolerance", "iso2768_tolerance"]
-
 #: the tolerance classes of ISO 2768-1
 ISO2768_CLASSES = ("f", "m", "c", "v")
 

@@ -21,8 +21,6 @@ import numpy as np
 from ._curves import Arc, Feature, Line
 from ._drawn import normal_limits
 
-__all__ = ["Profile", "profile_side", "ProfileError"]
-
 CONNECT_TOL_MM = 1e-6
 
 

@@ -22,8 +22,6 @@ import numpy as np
 
 from ._curves import rotate
 
-__all__ = ["MachineTransform", "machine_to_part", "part_to_machine", "ball_correction"]
-
 
 @dataclass(frozen=True)
 class MachineTransform:

@@ -13,8 +13,6 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["write_text_atomic", "write_bytes_atomic", "write_file_atomic"]
-
 
 def _check(path: Path, protect: Iterable[str | os.PathLike] | None) -> None:
     if path.is_dir():

@@ -45,15 +45,6 @@ from ._control_probe import PROBE_FORMATS
 from ._reader import Reader
 from ._text import decode, read_bytes
 
-__all__ = [
-    "ARTEFACT_KINDS",
-    "CalibrationArtefact",
-    "CalibrationFile",
-    "CalibrationProbeFile",
-    "parse_orders",
-    "read_calibration_file",
-]
-
 #: sphere: probed from outside around its equator in the XZ plane; ring: a bore probed
 #: from inside along +X and -X; diameter: a turned (measured) diameter probed from
 #: outside along -X and +X

@@ -43,8 +43,6 @@ from ._fastcsv import read_rows, split_lines
 from ._probe import ProbeData
 from ._text import decode, read_bytes
 
-__all__ = ["PROBE_FORMATS", "PlanPoints", "read_plan_points", "read_control_probe"]
-
 PROBE_FORMATS = ("csv", "linuxcnc", "linuxcnc-log", "fanuc-dprnt")
 _MM_PER = {"mm": 1.0, "in": 25.4}
 _NUM = r"[+-]?\s*(?:\d+\.?\d*|\.\d+)"

@@ -34,8 +34,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
-__all__ = ["MAX_STRING", "Lines", "Rows", "split_lines", "read_rows"]
-
 #: the longest string cell vouched for (longer cells go to the row reader)
 MAX_STRING = 256
 #: the longest numeric cell vouched for (characters, spaces stripped)

@@ -30,8 +30,6 @@ from types import MappingProxyType
 
 from ._reader import Reader
 
-__all__ = ["FEEDBACK_KEYS", "FEEDBACK_POLICIES", "read_feedback"]
-
 #: the replayed policies (`compensate._feedback.POLICIES`; a test keeps the two equal)
 FEEDBACK_POLICIES = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma", "bayes")
 

@@ -42,8 +42,6 @@ from ..errors import InputError
 from ..geometry import drawn_scale
 from ._text import decode, read_bytes
 
-__all__ = ["FINISH_COLUMNS", "FinishData", "read_finish_csv", "read_finish_files"]
-
 #: required, then optional columns of a finished-part CSV
 FINISH_COLUMNS = (("feature", "deviation", "u"), ("part", "on"))
 _MM_PER = {"mm": 1.0, "in": 25.4}

@@ -11,8 +11,6 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-__all__ = ["rows_to_dataframe"]
-
 
 def rows_to_dataframe(rows: Iterable[Mapping], columns: list[str] | None = None):
     """The rows (dicts, one per table row) as a `pandas.DataFrame`.

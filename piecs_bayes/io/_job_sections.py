@@ -18,8 +18,6 @@ from ..geometry import Profile
 from ._reader import Reader
 from ._settings import ProgramSettings
 
-__all__ = ["JOB_KEYS", "read_job_section", "read_plausibility", "read_program_settings"]
-
 # Keys of the job sections read by piecs_bayes.decisions (see docs/formats.md):
 # (kind, bounds) with kind "length" (converted to mm), "number", "int", "bool",
 # "choice" (bounds = options), "ids" (feature ids of the profile), "words" (G-code

@@ -36,9 +36,6 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import machine_to_part, profile_side
 
-__all__ = ["PlausibilityWarning", "check_probe_data", "drop_duplicates", "feature_limits"]
-
-
 #: the smallest default distance limit (mm): a chip under the stylus (0.1-0.3 mm) is an
 #: outlier for the robust fit, not an error; setup mistakes move points by a ball
 #: radius or more (1-2 mm), a diameter read as a radius by the radius itself

@@ -21,14 +21,6 @@ from ..errors import InputError, shown_files
 from ._fastcsv import read_rows, split_lines
 from ._text import decode, read_bytes
 
-__all__ = [
-    "ProbeData",
-    "read_probe_csv",
-    "read_probe_csv_by_rows",
-    "REQUIRED_COLUMNS",
-    "OPTIONAL_COLUMNS",
-]
-
 REQUIRED_COLUMNS = ("feature", "x", "z")
 OPTIONAL_COLUMNS = ("part", "approach_x", "approach_z", "time", "temperature")
 _NUMERIC = ("x", "z", "approach_x", "approach_z", "time", "temperature")

@@ -38,15 +38,6 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = [
-    "CALIBRATION_FORMAT",
-    "ProbeCalibration",
-    "approach_angle",
-    "coefficient_names",
-    "lobe_basis",
-    "read_probe_calibration",
-]
-
 #: The ``format`` key of a probe_cal.json this version reads and writes.
 CALIBRATION_FORMAT = "piecs-bayes probe calibration 1"
 #: The orders of r(theta) a calibration may hold (order 1 is the probe's offset).

@@ -7,8 +7,6 @@ import math
 
 from ..errors import InputError
 
-__all__ = ["Reader"]
-
 
 class Reader:
     """Typed access to the TOML tree that names the key path in every error."""

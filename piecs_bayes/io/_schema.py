@@ -14,8 +14,6 @@ import difflib
 
 from ..errors import InputError
 
-__all__ = ["DIST_KEYS", "SECTIONS", "check_keys", "check_source", "nearest"]
-
 #: section -> its keys; "profile.feature" is each [[profile.feature]] table.
 #: `uncertainty` holds one table per source (names in `_sections.KNOWN_SOURCES`) whose
 #: keys the prior reader checks; the job sections' keys come from `_job_sections.JOB_KEYS`.

@@ -30,18 +30,6 @@ from ._reader import Reader
 from ._schema import check_source
 from ._settings import APPLY_ROUTES, CompensationSettings, FitSettings, ProbeSpec, split_fix
 
-__all__ = [
-    "KNOWN_SOURCES",
-    "read_compensation",
-    "read_files",
-    "read_fit",
-    "read_machine",
-    "read_probe",
-    "read_probe_format",
-    "read_profile",
-    "read_sources",
-]
-
 #: Uncertainty sources a study may declare, with the unit of their values.
 KNOWN_SOURCES = {
     "repeatability": "mm (probe repeatability, standard deviation)",

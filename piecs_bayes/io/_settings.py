@@ -13,15 +13,6 @@ from types import MappingProxyType
 from ..geometry import MachineTransform, Profile
 from ._probe_cal import ProbeCalibration
 
-__all__ = [
-    "APPLY_ROUTES",
-    "Study",
-    "ProbeSpec",
-    "FitSettings",
-    "CompensationSettings",
-    "ProgramSettings",
-]
-
 #: the routes of a correction to the machine (`[compensation] apply`): the adjusted part
 #: program, the error specification (native + LinuxCNC comp tables), the tool-offset
 #: update, or nothing. One route only: two together apply the correction twice.

@@ -24,7 +24,6 @@ from ._job_sections import JOB_KEYS, read_job_section, read_plausibility, read_p
 from ._reader import Reader
 from ._schema import check_keys
 from ._sections import (
-    KNOWN_SOURCES,
     read_compensation,
     read_files,
     read_fit,
@@ -34,18 +33,8 @@ from ._sections import (
     read_profile,
     read_sources,
 )
-from ._settings import CompensationSettings, FitSettings, ProbeSpec, ProgramSettings, Study
+from ._settings import Study
 from ._text import check_encoding, decode, read_bytes
-
-__all__ = [
-    "Study",
-    "ProbeSpec",
-    "FitSettings",
-    "CompensationSettings",
-    "ProgramSettings",
-    "load_study",
-    "KNOWN_SOURCES",
-]
 
 _MM_PER = {"mm": 1.0, "in": 25.4}
 _CORE_SECTIONS = {"study", "profile", "probe", "machine", "uncertainty", "fit", "compensation"}

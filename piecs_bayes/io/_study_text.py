@@ -16,8 +16,6 @@ import json
 import math
 from dataclasses import dataclass
 
-__all__ = ["FeatureText", "Setting", "StudyText", "study_toml", "toml_number"]
-
 
 @dataclass(frozen=True)
 class Setting:

@@ -14,8 +14,6 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["ENCODINGS", "check_encoding", "read_text"]
-
 #: encodings a study may name; anything Python knows is accepted, these are the usual
 ENCODINGS = ("utf-8", "cp1252", "latin-1")
 

@@ -21,8 +21,6 @@ from __future__ import annotations
 from ..errors import InputError
 from ..io import APPLY_ROUTES
 
-__all__ = ["APPLY_ROUTES", "apply_route"]
-
 
 def apply_route(study, route: str | None = None) -> tuple[str, str]:
     """The route of `study`'s correction to the machine and why it was chosen.

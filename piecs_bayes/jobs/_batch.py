@@ -43,16 +43,6 @@ from ..io import parse_fix
 from ..uncertainty import characteristic_arrays, path_grid, path_jacobian_function
 from ._options import fit_options, robust_scale
 
-__all__ = [
-    "CapabilityJob",
-    "ChunkValues",
-    "capability_job",
-    "capability_values",
-    "fit_study_batch",
-    "path_uncertainty_batch",
-    "PathUncertaintyBatch",
-]
-
 
 @dataclass(frozen=True)
 class CapabilityJob:

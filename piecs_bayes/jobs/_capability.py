@@ -40,13 +40,6 @@ from ._batch import capability_values
 from ._fit import fit_study, load_probe_data
 from ._options import source_sds
 
-__all__ = [
-    "CapabilityStudy",
-    "FeatureCapability",
-    "capability_from_values",
-    "capability_study",
-]
-
 
 @dataclass(frozen=True, eq=False)
 class FeatureCapability:

@@ -29,8 +29,6 @@ from ..geometry import MachineTransform, Profile
 from ..uncertainty import linearised_toolpath, monte_carlo_toolpath, path_function, path_grid
 from ._probe_radius import calibrated_points, radius_components
 
-__all__ = ["CoverageResult", "coverage_check"]
-
 
 @dataclass(frozen=True)
 class CoverageResult:

@@ -23,13 +23,6 @@ from ..io import rows_to_dataframe
 from ..uncertainty import Characteristic, feature_characteristic
 from ._options import decision_settings, source_sds
 
-__all__ = [
-    "DecisionTable",
-    "characteristics",
-    "decide_features",
-    "decide_study",
-]
-
 
 def characteristics(study, fit, *, at: str = "mid") -> dict[str, Characteristic]:
     """[`Characteristic`][]s of every fitted feature of `fit` (profile order), with the

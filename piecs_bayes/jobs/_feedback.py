@@ -64,8 +64,6 @@ from ._feedback_result import COVERAGE_LEVEL, FeatureFeedback, FeedbackResult
 from ._fit import load_probe_data
 from ._options import source_sds
 
-__all__ = ["FeatureFeedback", "FeedbackResult", "feedback_from_values", "feedback_study"]
-
 _Z95 = 1.959963984540054
 
 

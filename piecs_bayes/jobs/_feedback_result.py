@@ -12,14 +12,6 @@ import numpy as np
 from ..feedback import COMPARISONS, SHOP_SETTINGS
 from ..io import rows_to_dataframe
 
-__all__ = [
-    "COVERAGE_LEVEL",
-    "FeatureFeedback",
-    "FeedbackResult",
-    "feedback_comparison",
-    "feedback_policy_label",
-]
-
 #: the level of the predictive intervals checked
 COVERAGE_LEVEL = 0.95
 

@@ -30,18 +30,6 @@ from ._probe_radius import calibrated_points, radius_components
 if TYPE_CHECKING:  # compensate pulls in scipy (~0.6 s): imported where it is used
     from ..compensate import AdjustedPath
 
-__all__ = [
-    "load_probe_data",
-    "fit_study",
-    "compensate_study",
-    "inliers",
-    "bayes_study",
-    "toolpath_uncertainty",
-    "pooled_sigma",
-    "adjust_study_program",
-    "program_header",
-]
-
 
 def load_probe_data(study: Study, files=None) -> ProbeData:
     """Read the study's probe files (or ``files``) into one :class:`ProbeData`.

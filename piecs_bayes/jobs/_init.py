@@ -48,8 +48,6 @@ from ..geometry import iso2768_tolerance
 from ..io import FeatureText, Setting, StudyText, load_study, study_toml, write_file_atomic
 from ._init_names import MM_PER, feature_ids, general_tolerance
 
-__all__ = ["InitResult", "study_from_program", "init_study"]
-
 _GEOMETRY_TOL_MM = 1e-9
 
 

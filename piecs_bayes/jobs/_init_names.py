@@ -16,8 +16,6 @@ import math
 from ..gcode import FinishContour
 from ..geometry import feature_form, iso2768_tolerance
 
-__all__ = ["MM_PER", "feature_ids", "general_tolerance"]
-
 MM_PER = {"mm": 1.0, "in": 25.4}
 
 

@@ -27,8 +27,6 @@ from ..uncertainty import (
 )
 from ._options import offset_settings, source_sds
 
-__all__ = ["error_spec", "tool_offsets", "program_tool"]
-
 #: a line whose outward normal is within this of an axis is a diameter / a face
 _AXIAL = 1.0 - 1e-9
 

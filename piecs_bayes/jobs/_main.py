@@ -65,8 +65,6 @@ from ._machine import error_spec, tool_offsets
 from ._probe_radius import calibration_warnings
 from ._results import JobResults, hash_file, package_versions
 
-__all__ = ["run_job"]
-
 
 class _Progress:
     """Progress lines: to a callable (as they are), to stderr with the elapsed time

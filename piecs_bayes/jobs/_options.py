@@ -14,17 +14,6 @@ from ..fit import CALIBRATION_SOURCE, TUNING, prior_from_spec
 from ..io import Study, parse_fix
 from ._probe_radius import radius_components
 
-__all__ = [
-    "bayes_options",
-    "bayes_sources",
-    "calibration_sds",
-    "decision_settings",
-    "fit_options",
-    "offset_settings",
-    "robust_scale",
-    "source_sds",
-]
-
 
 def robust_scale(study: Study) -> float:
     """Loss scale of robust fits: the study's ``fit.scale`` (a standard deviation,

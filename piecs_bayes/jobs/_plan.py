@@ -49,16 +49,6 @@ from ..uncertainty import (
 )
 from ._options import source_sds
 
-__all__ = [
-    "PLAN_DEFAULTS",
-    "PlannedPoint",
-    "FeaturePlan",
-    "ProbePlan",
-    "feature_fractions",
-    "plan_more",
-    "plan_study",
-]
-
 #: `[plan]` defaults (mm, mm/min)
 PLAN_DEFAULTS = {
     "ratio": 4.0,

@@ -9,8 +9,6 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import CHORD_ERROR_MM, feature_polyline, path_distance
 
-__all__ = ["is_internal", "order_and_route", "retract_x"]
-
 _SAFE = 3 * CHORD_ERROR_MM  # see _plan
 
 

@@ -28,8 +28,6 @@ from ..io import (
     read_probe_csv,
 )
 
-__all__ = ["calibrate_probe", "calibration_points", "parse_orders_option"]
-
 
 def parse_orders_option(text: str | None):
     """``--orders``: None (the file's), ``auto``, ``0`` (one radius), ``2`` or ``2,3``."""

@@ -24,14 +24,6 @@ from ..errors import InputError
 from ..fit import RadiusComponents, to_part_frame
 from ..io import ProbeCalibration, approach_angle
 
-__all__ = [
-    "approach_directions",
-    "calibrated_points",
-    "calibration_warnings",
-    "lobing_pretravel",
-    "radius_components",
-]
-
 
 def approach_directions(profile, feature_ids, machine_points, transform, approach=None):
     """Unit approach directions ``(n, 2)``: `approach` when given, else the nominal

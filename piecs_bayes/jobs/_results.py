@@ -9,9 +9,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["InputFile", "JobResults", "STEPS", "hash_file", "package_versions"]
-
-
 #: packages whose versions a report lists (those that change numbers)
 VERSIONED_PACKAGES = (
     "piecs_bayes",

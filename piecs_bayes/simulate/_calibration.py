@@ -23,8 +23,6 @@ import numpy as np
 
 from ..io import coefficient_names, lobe_basis, write_text_atomic
 
-__all__ = ["simulate_calibration", "write_calibration_sim"]
-
 TRUTH_ORDERS = (2, 3)
 
 

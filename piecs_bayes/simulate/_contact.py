@@ -28,8 +28,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Piece", "truth_pieces", "first_contact", "piece_distance"]
-
 _ANGLE_TOL = 1e-12
 _LEN_TOL = 1e-12
 

@@ -7,8 +7,6 @@ import numpy as np
 
 from ..geometry import Arc, MachineTransform, Profile, drawn_limits
 
-__all__ = ["probe_csv_text", "study_toml_text"]
-
 
 def probe_csv_text(
     sim: dict, *, part: str | None = None, x_mode: str = "diameter", header: str = ""

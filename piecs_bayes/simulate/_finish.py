@@ -29,8 +29,6 @@ import numpy as np
 from ..geometry import drawn_scale
 from ..uncertainty import normal_deviation
 
-__all__ = ["FINISH_DEFAULTS", "write_finish"]
-
 #: the defaults of [`write_finish`][] (mm)
 FINISH_DEFAULTS = {"transfer": 0.85, "finish_sd": 0.0003, "u_cmm": 0.0005, "every": 3}
 

@@ -50,8 +50,6 @@ from ..gcode import GaugeMove, read_gauge_program
 from ..io import write_text_atomic
 from ._contact import first_contact, piece_distance, truth_pieces
 
-__all__ = ["GaugeTrip", "GaugeRun", "read_truth", "simulate_gauge", "probeopen_line"]
-
 MM_PER_INCH = 25.4
 #: mm: a move that starts this close to the part (just after a trip) leaves it; not checked
 _LEAVING = 1e-6

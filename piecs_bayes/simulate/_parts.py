@@ -37,9 +37,6 @@ from ..geometry import (
 from ..io import lobe_basis
 from ._files import probe_csv_text, study_toml_text
 
-__all__ = ["ProcessErrors", "demo_profile", "process_deviations", "simulate_probe",
-           "simulate_parts", "probe_csv_text", "write_demo", "write_batch"]  # fmt: skip
-
 
 @dataclass(frozen=True)
 class ProcessErrors:
@@ -554,7 +551,3 @@ def _batch_part(out, k: int, run: _Run, rng) -> dict:
             for fid, d in truth.items()
         },
     }
-
-
-__all__ += ["BATCH_WEAR_PER_PART", "batch_part_errors", "study_toml_text", "DEMO_ERRORS",
-            "DEMO_TRANSFORM", "DEMO_FEATURES", "DEMO_POINTS"]  # fmt: skip

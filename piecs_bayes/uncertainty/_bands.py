@@ -44,8 +44,6 @@ from ..errors import InputError
 stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 qmc = _config.LazyModule("scipy.stats.qmc")
 
-__all__ = ["Bands", "bands_from_samples", "bands_linear"]
-
 
 def _frozen(a) -> np.ndarray:
     a = np.array(a, dtype=float)

@@ -41,20 +41,6 @@ from ..errors import AnalysisError, InputError
 from ..fit import CALIBRATION_SOURCE, arc_distance, effective_dof, geometry_args, line_distance
 from ..geometry import Line, drawn_scale
 
-__all__ = [
-    "AT_FRACTION",
-    "Characteristic",
-    "at_fractions",
-    "characteristic_arrays",
-    "feature_characteristic",
-    "normal_deviation",
-    "normal_deviation_at",
-    "normal_deviation_draws",
-    "deviation_and_jacobian",
-    "nominal_points",
-    "u_systematic",
-]
-
 #: the fixed characteristic points, as fractions of the nominal feature
 AT_FRACTION = {"start": 0.0, "mid": 0.5, "end": 1.0}
 

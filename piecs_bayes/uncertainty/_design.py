@@ -44,16 +44,6 @@ import numpy as np
 from ..fit import coverage_factor, effective_dof
 from ._characteristic import at_fractions, deviation_and_jacobian, u_systematic
 
-__all__ = [
-    "DesignSettings",
-    "FeaturePrediction",
-    "augment_fractions",
-    "design_fractions",
-    "predict_feature",
-    "points_for_ratio",
-    "uniform_fractions",
-]
-
 _CANDIDATES = 201
 _SWEEPS = 8
 

@@ -26,15 +26,6 @@ import numpy as np
 
 from ..errors import AnalysisError, InputError
 
-__all__ = [
-    "AdaptiveMCResult",
-    "adaptive_monte_carlo",
-    "coverage_interval",
-    "propagate_linear",
-    "propagate_mc",
-    "uncertainty_budget",
-]
-
 
 def _check_cov(x: np.ndarray, cov, what: str = "cov") -> np.ndarray:
     n = x.size

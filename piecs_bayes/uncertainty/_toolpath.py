@@ -40,17 +40,6 @@ from . import _toolpath_rows
 from ._bands import Bands, bands_from_samples, bands_linear
 from ._propagate import uncertainty_budget
 
-__all__ = [
-    "LINEARISED_SOURCES",
-    "PathGrid",
-    "path_jacobian_function",
-    "path_grid",
-    "path_function",
-    "ToolpathUncertainty",
-    "linearised_toolpath",
-    "monte_carlo_toolpath",
-]
-
 LINEARISED_SOURCES = SOURCE_EFFECTS
 
 

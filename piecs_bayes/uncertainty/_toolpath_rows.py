@@ -12,8 +12,6 @@ import numpy as np
 
 from ..geometry import Profile
 
-__all__ = ["band_rows", "budget_rows", "vertex_rows"]
-
 
 def vertex_rows(tpu) -> list[dict]:
     """One row per vertex of the adjusted path: position and standard uncertainties."""

@@ -21,9 +21,6 @@ import math
 
 import numpy as np
 
-__all__ = ["RC", "param_unit"]
-
-
 #: rcParams the report is drawn with (readable at A4 landscape and on screen)
 RC = {
     "font.size": 9,

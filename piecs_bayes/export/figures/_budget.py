@@ -8,9 +8,6 @@ import numpy as np
 
 from ._base import _contour_s, _figure, _label_features, param_unit
 
-__all__ = ["budget_figure"]
-
-
 _SOURCE_COLOURS = {
     "repeatability": "#4C72B0",
     "ball_radius": "#DD8452",

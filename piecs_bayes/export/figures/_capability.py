@@ -9,8 +9,6 @@ import numpy as np
 
 from ._base import _figure, _grid
 
-__all__ = ["capability_chart_figure", "capability_index_figure"]
-
 #: the drawn coordinate's symbol in axis labels
 _SIGN = {"diameter": "Ø", "radius": "R", "length": "Z"}
 

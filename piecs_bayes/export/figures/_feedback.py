@@ -12,8 +12,6 @@ import numpy as np
 
 from ._base import RC, _figure, _grid
 
-__all__ = ["feedback_figures", "feedback_policy_figure", "feedback_track_figure"]
-
 #: the drawn coordinate's symbol in axis labels
 _SIGN = {"diameter": "Ø", "radius": "R", "length": "Z"}
 

@@ -9,8 +9,6 @@ import numpy as np
 
 from ._base import _figure, _grid, param_unit
 
-__all__ = ["trace_figure", "diagnostics_figure", "corner_feature", "corner_figure"]
-
 
 def trace_figure(posterior, *, max_points: int = 600, walkers_per_ensemble: int = 2):
     """Trace of every parameter after burn-in: the walker mean of each ensemble

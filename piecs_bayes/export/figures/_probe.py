@@ -6,8 +6,6 @@ import numpy as np
 
 from ._base import _figure
 
-__all__ = ["probe_calibration_figure"]
-
 
 def probe_calibration_figure(cal):
     """The calibrated effective radius against the approach angle, as a polar plot of

@@ -9,8 +9,6 @@ from ...geometry import drawn_limits, drawn_scale
 from ...uncertainty import normal_deviation_at
 from ._base import _contour_s, _figure, _label_features, _nice
 
-__all__ = ["auto_exaggeration", "profile_figure", "offset_figure"]
-
 
 def auto_exaggeration(res) -> float:
     """A round factor (1, 2 or 5 x 10^k) that draws the largest deviation (fitted

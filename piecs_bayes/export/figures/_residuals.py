@@ -8,8 +8,6 @@ import numpy as np
 
 from ._base import _figure, _grid
 
-__all__ = ["residuals_figure"]
-
 
 def _along(feature, q):
     """Distance (mm) along the nominal feature from its start of nominal points `q`."""

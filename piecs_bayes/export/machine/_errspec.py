@@ -24,8 +24,6 @@ from ...compensate import CompensationTable, ErrorSpec
 from ...errors import InputError
 from ...io import write_text_atomic
 
-__all__ = ["errspec_texts", "read_errspec", "write_errspec"]
-
 FORMAT_NAME = "piecs-bayes-errspec"
 # file stems use the alphabet of table names (they become parts of file names too)
 _STEM = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")

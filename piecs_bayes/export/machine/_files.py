@@ -23,14 +23,6 @@ from ._errspec import read_errspec, write_errspec
 from ._linuxcnc import read_linuxcnc_comp, write_linuxcnc_comp
 from ._offsets import g10_fanuc, g10_linuxcnc, offsets_from_json, offsets_to_json
 
-__all__ = [
-    "ALTERNATIVE",
-    "CompensationOutputs",
-    "alternative_note",
-    "mark_alternative",
-    "write_compensation_outputs",
-]
-
 #: the mark of a file of a route that is not the one to load
 ALTERNATIVE = "alternative: do not combine"
 

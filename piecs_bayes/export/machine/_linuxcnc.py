@@ -45,15 +45,6 @@ from ...compensate import CompensationTable
 from ...errors import AnalysisError, InputError
 from ...io import write_text_atomic
 
-__all__ = [
-    "LinuxCNCComp",
-    "linuxcnc_comp_text",
-    "parse_linuxcnc_comp",
-    "read_linuxcnc_comp",
-    "validate_linuxcnc_comp",
-    "write_linuxcnc_comp",
-]
-
 LINUXCNC_MAX_ROWS = 256  # EMCMOT_COMP_SIZE
 LINUXCNC_LINELEN = 255  # LINELEN of emc/linuxcnc.h; fgets keeps LINELEN - 1 characters
 

@@ -30,8 +30,6 @@ from ...compensate import AxisCorrection, OffsetSettings, ToolOffsets, ToolOffse
 from ...errors import AnalysisError, InputError
 from ...gcode import comment_text
 
-__all__ = ["g10_fanuc", "g10_linuxcnc", "offsets_from_json", "offsets_to_json"]
-
 FORMAT_NAME = "piecs-bayes-tool-offsets"
 FORMAT_VERSION = 1
 _STATUSES = ("update", "null band", "not significant", "blocked", "not measured")

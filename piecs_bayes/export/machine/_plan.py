@@ -16,8 +16,6 @@ from pathlib import Path
 from ...gcode import GAUGING_NAMES, gauging_program
 from ...io import write_text_atomic
 
-__all__ = ["GAUGING_NAMES", "plan_json", "plan_program", "plan_figure", "write_plan"]
-
 _MM_PER = {"mm": 1.0, "in": 25.4}
 
 

@@ -34,8 +34,6 @@ from ._files import (
 from ._linuxcnc import linuxcnc_comp_text
 from ._offsets import g10_linuxcnc
 
-__all__ = ["MachineFiles", "ROUTE_TITLES", "route_file_names", "write_machine_files"]
-
 #: what each route loads, in words
 ROUTE_TITLES = {
     "program": "the adjusted part program",

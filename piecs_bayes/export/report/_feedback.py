@@ -16,8 +16,6 @@ from ..tables import feedback_csvs, feedback_json
 from ._html import _CSS, _render_html_block
 from .model import _f, _Fig, _Para, _Pre, _Table
 
-__all__ = ["feedback_blocks", "feedback_report_html"]
-
 #: the drawn coordinate in a table cell
 _ON = {"diameter": "Ø", "radius": "R", "length": "Z", "normal": "normal"}
 

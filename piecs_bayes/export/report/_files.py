@@ -29,8 +29,6 @@ from ._html import _html, _png
 from ._pdf import _pdf, _pdf_pages
 from ._sections import _sections
 
-__all__ = ["report_files"]
-
 
 def report_files(res) -> tuple[str, bytes]:
     """`(html, pdf)` with every figure drawn once (what the CLI writes)."""

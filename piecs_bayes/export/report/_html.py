@@ -11,9 +11,6 @@ from ._sections import _sections
 from ._summary import _summary_table
 from .model import CLASS_COLOURS, _Bullets, _Fig, _is_num, _PageBreak, _Para, _Pre, _Table, _Tables
 
-__all__ = ["report_html", "summary_html"]
-
-
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;
 max-width:1180px;margin:0 auto;padding:1em 1.5em;color:#222;line-height:1.4}

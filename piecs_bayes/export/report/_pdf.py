@@ -13,8 +13,6 @@ from ._pdf_flow import BODY, TITLE, Flow, render_pages, text_op
 from ._sections import _sections
 from .model import _Fig, _PageBreak
 
-__all__ = ["report_pdf"]
-
 
 def _place_section(flow: Flow, head: str, blocks, on_figure, numbers) -> None:
     """A section: its heading, then its blocks; a figure that does not fit the page

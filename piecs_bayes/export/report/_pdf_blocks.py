@@ -26,8 +26,6 @@ from ._pdf_flow import (
 )
 from .model import CLASS_COLOURS, _Bullets, _is_num, _Para, _Pre, _Table, _Tables
 
-__all__ = ["FigurePiece", "keep_height", "place_block", "place_heading"]
-
 _PARA_STYLE = {
     "p": {},
     "note": {"color": "0.3"},

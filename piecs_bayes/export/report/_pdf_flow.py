@@ -26,8 +26,6 @@ BODY, SMALL, CELL, MONO, HEAD, TITLE = 8.6, 7.6, 7.3, 6.8, 12.5, 16.0
 LEAD = 1.28
 PT = 1.0 / 72.0
 
-__all__ = ["Flow", "render_pages", "text_width", "wrap"]
-
 
 @functools.lru_cache(maxsize=8)
 def _props(size: float, bold: bool, mono: bool):

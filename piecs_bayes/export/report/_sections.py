@@ -8,9 +8,6 @@ from ._machine import _errspec_section, _program_section
 from ._summary import _inputs_section, _summary_section
 from ._verdict import verdict_section
 
-__all__ = ["SECTIONS"]
-
-
 #: (id, title) of the report's sections, in order
 SECTIONS = (
     ("verdict", "Verdict"),

@@ -12,9 +12,6 @@ from ...fit import coverage_factor
 from ...geometry import drawn_scale
 from .model import _Bullets, _f, _Fig, _Para, _Pre, _Table, _Tables, css_class
 
-__all__ = ["summary_rows"]
-
-
 #: coverage probability of a k = 2 interval under the normal (JCGM 100 G.6)
 K2_COVERAGE = 0.9544997361036416
 

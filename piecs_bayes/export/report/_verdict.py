@@ -14,8 +14,6 @@ from ..machine import route_file_names
 from ._summary import summary_rows, tolerance_text
 from .model import _f, _PageBreak, _Para, _Table, css_class
 
-__all__ = ["verdict_section"]
-
 
 def _verdict_table(rows: list[dict]) -> _Table:
     cells, table = [], []

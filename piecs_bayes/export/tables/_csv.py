@@ -16,8 +16,6 @@ import json
 
 import numpy as np
 
-__all__ = ["fit_json", "fit_csv", "residuals_csv", "path_csv", "to_csv"]
-
 SCHEMA_VERSION = 1
 
 

@@ -15,8 +15,6 @@ import math
 from ._csv import to_csv
 from ._jobs import json_safe
 
-__all__ = ["feedback_csvs", "feedback_json", "feedback_text"]
-
 SCHEMA_VERSION = 1
 
 

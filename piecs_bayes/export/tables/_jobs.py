@@ -15,16 +15,6 @@ import numpy as np
 
 from ._csv import to_csv
 
-__all__ = [
-    "capability_csvs",
-    "capability_json",
-    "capability_text",
-    "decisions_csv",
-    "decisions_json",
-    "decisions_text",
-    "json_safe",
-]
-
 SCHEMA_VERSION = 1
 
 

@@ -37,8 +37,6 @@ from . import losses
 from ._statistics import analyse, statistics
 from ._types import SOLVERS, LsqArrays
 
-__all__ = ["POLISH_STEPS", "SCALE_ROUNDS", "is_linear", "solve_arrays", "stages"]
-
 #: rounds (scale, fit) of the Huber and of the final stages of a robust fit
 SCALE_ROUNDS = (5, 3)
 #: Gauss-Newton polishing steps after the solver.

@@ -33,8 +33,6 @@ from ._core import is_linear, solve_arrays
 from ._result import LsqResult, param_names, result_from_arrays
 from ._types import SOLVERS, Status
 
-__all__ = ["least_squares", "ravel"]
-
 
 def _as_float_tree(y0):
     def leaf(x):

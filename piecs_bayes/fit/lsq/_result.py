@@ -13,8 +13,6 @@ import numpy as np
 
 from ._types import COV_OK, COV_REASONS, Status
 
-__all__ = ["COND_ACCURATE", "LsqResult", "param_names", "result_from_arrays"]
-
 #: condition number (of the column-scaled weighted Jacobian) above which the
 #: covariance is flagged as not accurate: its relative error is ~ eps * cond^2.
 COND_ACCURATE = 1e6

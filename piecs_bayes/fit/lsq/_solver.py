@@ -20,8 +20,6 @@ import optimistix as optx
 
 from ._types import SOLVERS, Status
 
-__all__ = ["SOLVERS", "SafeTrustRegion", "TrustRegionSolver", "make_solver", "status_code"]
-
 #: optimistix's outcome -> ours; any other member (a failed linear solve:
 #: breakdown, stagnation, conlim, max_steps_reached of an iterative linear
 #: solver) is `LINEAR_SOLVE_FAILED`.

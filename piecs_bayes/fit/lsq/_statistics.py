@@ -33,8 +33,6 @@ import jax.numpy as jnp
 from . import losses
 from ._types import COV_DOF, COV_NONFINITE, COV_OK, COV_ROBUST, COV_SINGULAR, LsqArrays, Status
 
-__all__ = ["STATIONARY_RTOL", "analyse", "statistics"]
-
 #: a solution is stationary when the Gauss-Newton step left is below this times
 #: max(|parameter|, standard error) (+ 10 atol) for every parameter.
 STATIONARY_RTOL = 1e-3

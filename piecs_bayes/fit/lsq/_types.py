@@ -10,8 +10,6 @@ from typing import NamedTuple
 
 import jax
 
-__all__ = ["SOLVERS", "COV_REASONS", "LsqArrays", "Status"]
-
 #: the engine's solvers (optimistix; `_lsq_solver`)
 SOLVERS = ("lm", "gauss_newton", "dogleg")
 

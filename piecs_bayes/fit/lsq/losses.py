@@ -34,17 +34,6 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-__all__ = [
-    "LOSS_NAMES",
-    "TUNING",
-    "loss_id",
-    "mad_sigma",
-    "normal_variance_factor",
-    "psi_prime",
-    "rho_over_z",
-    "rho_prime",
-]
-
 LOSS_NAMES = ("linear", "huber", "soft_l1", "cauchy", "tukey")
 TUNING = {"linear": 1.0, "huber": 1.345, "soft_l1": 1.345, "cauchy": 2.385, "tukey": 4.685}
 CUSTOM = len(LOSS_NAMES)  # index of a user-supplied loss

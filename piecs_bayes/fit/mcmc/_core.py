@@ -16,9 +16,6 @@ import numpy as np
 from ...errors import AnalysisError, InputError
 from ._diagnostics import arviz_layout, ess_and_rhat
 
-__all__ = ["ConvergenceError", "ConvergenceWarning", "check_thin", "gaussian_loglik",
-           "student_t_loglik"]  # fmt: skip
-
 _LOG_2PI = math.log(2.0 * math.pi)
 
 

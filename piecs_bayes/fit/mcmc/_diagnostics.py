@@ -30,8 +30,6 @@ import numpy as np
 
 from ...errors import InputError
 
-__all__ = ["arviz_layout", "ess_bulk", "problems", "split_rhat", "rank_normalise"]
-
 
 def arviz_layout(kept: np.ndarray) -> np.ndarray:
     """Ensemble draws `(K, S, W, ...)` -> ArviZ chains `(K, W * S, ...)`, walker-major."""

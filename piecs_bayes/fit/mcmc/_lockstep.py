@@ -53,8 +53,6 @@ from ._diagnostics import problems as _problems
 from ._moves import DE_FRACTION, DE_SIGMA, STRETCH_A, check_moves, de_gamma0
 from ._posterior import Posterior, make_posterior
 
-__all__ = ["LOCKSTEP", "sample_posteriors"]
-
 #: The sampler's name in `Posterior.sampler` and posterior.nc (with the backend).
 LOCKSTEP = "piecs_bayes lockstep ensembles"
 

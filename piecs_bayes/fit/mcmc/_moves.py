@@ -33,16 +33,6 @@ import numpy as np
 
 from ...errors import InputError
 
-__all__ = [
-    "MOVES",
-    "DE_FRACTION",
-    "STRETCH_A",
-    "check_moves",
-    "de_gamma0",
-    "emcee_moves",
-    "snooker_move_is_sound",
-]
-
 #: the names a user may pass as ``moves`` (``None`` means ``"stretch"``)
 MOVES = ("stretch", "de")
 #: share of differential-evolution steps in ``"de"`` (the rest are stretch steps)

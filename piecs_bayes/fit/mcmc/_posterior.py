@@ -14,8 +14,6 @@ import numpy as np
 from ...errors import InputError
 from ._diagnostics import arviz_layout
 
-__all__ = ["Posterior", "emcee_module", "frozen", "import_arviz", "make_posterior"]
-
 
 def frozen(a) -> np.ndarray:
     a = np.array(a)

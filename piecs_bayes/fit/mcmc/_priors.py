@@ -35,17 +35,6 @@ import numpy as np
 
 from ...errors import InputError
 
-__all__ = [
-    "Prior",
-    "Normal",
-    "Uniform",
-    "HalfNormal",
-    "LogNormal",
-    "StudentT",
-    "ScaledInvChi2",
-    "prior_from_spec",
-]
-
 _LOG_2PI = math.log(2.0 * math.pi)
 
 

@@ -52,24 +52,11 @@ from ._core import (
     _sqrt_psd,
     _start_cov,
     check_thin,
-    gaussian_loglik,
-    student_t_loglik,
 )
 from ._diagnostics import problems as _problems
-from ._diagnostics import split_rhat
 from ._lockstep import sample_posteriors
 from ._moves import check_moves, emcee_moves
 from ._posterior import Posterior, emcee_module, make_posterior
-
-__all__ = [
-    "ConvergenceError",
-    "ConvergenceWarning",
-    "Posterior",
-    "gaussian_loglik",
-    "sample_posterior",
-    "split_rhat",
-    "student_t_loglik",
-]
 
 
 @functools.lru_cache(maxsize=64)
