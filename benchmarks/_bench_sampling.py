@@ -193,7 +193,7 @@ def section_cd(args):
     import emcee
 
     from piecs_bayes.fit import sample_posteriors
-    from piecs_bayes.fit.mcmc._core import _neg_hessian, _sqrt_psd
+    from piecs_bayes.fit.mcmc._core import _neg_hessian, sqrt_psd
     from piecs_bayes.fit.mcmc._lockstep import _parts_walkers
     from piecs_bayes.fit.mcmc._moves import emcee_moves
     from piecs_bayes.fit.mcmc._sampler import _vectorised
@@ -204,7 +204,7 @@ def section_cd(args):
     h = np.asarray(_neg_hessian(log_prob)(jnp.asarray(x0), pargs))
     w_, v_ = np.linalg.eigh(0.5 * (h + h.T))
     cov = (v_ / w_) @ v_.T
-    root = _sqrt_psd(cov)
+    root = sqrt_psd(cov)
     rng = np.random.default_rng(0)
     probe_pts = x0 + rng.standard_normal((50, d)) @ root.T
     vec = _vectorised(log_prob)

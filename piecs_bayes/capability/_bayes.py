@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import _config
 from ..errors import AnalysisError
-from ._indices import _NAN_INTERVAL, Interval
+from ._indices import NAN_INTERVAL, Interval
 
 stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 
@@ -48,14 +48,14 @@ class BayesCapability:
         )
 
 
-def _posterior_draws(n, ybar, s, nu, n_draws, seed):
+def posterior_draws(n, ybar, s, nu, n_draws, seed):
     rng = np.random.default_rng(seed)
     var = nu * s**2 / rng.chisquare(nu, size=n_draws)
     mu = ybar + np.sqrt(var / n) * rng.standard_normal(n_draws)
     return rng, mu, var
 
 
-def _draw_indices(mu, sd, lsl, usl, target):
+def draw_indices(mu, sd, lsl, usl, target):
     with np.errstate(invalid="ignore"):
         cpl = (mu - lsl) / (3 * sd) if lsl is not None else np.full_like(sd, np.inf)
         cpu = (usl - mu) / (3 * sd) if usl is not None else np.full_like(sd, np.inf)
@@ -67,17 +67,17 @@ def _draw_indices(mu, sd, lsl, usl, target):
     return cp, cpk, cpm
 
 
-def _summary(x, level) -> tuple[float, Interval]:
+def summarise_draws(x, level) -> tuple[float, Interval]:
     if x is None:
-        return math.nan, Interval(*_NAN_INTERVAL, level)
+        return math.nan, Interval(*NAN_INTERVAL, level)
     q = np.quantile(x, [0.5, (1 - level) / 2, (1 + level) / 2])
     return float(q[0]), Interval(float(q[1]), float(q[2]), level)
 
 
-def _bayes_capability(y, lsl, usl, target, gauge_sd, level, threshold, n_draws, seed):
+def bayes_capability(y, lsl, usl, target, gauge_sd, level, threshold, n_draws, seed):
     n = y.size
     ybar, s = float(y.mean()), float(np.std(y, ddof=1))
-    _, mu, var = _posterior_draws(n, ybar, s, n - 1, n_draws, seed)
+    _, mu, var = posterior_draws(n, ybar, s, n - 1, n_draws, seed)
     var_p = var - gauge_sd**2
     keep = var_p > 0.0
     discarded = 1.0 - float(keep.mean())
@@ -87,8 +87,8 @@ def _bayes_capability(y, lsl, usl, target, gauge_sd, level, threshold, n_draws, 
             "draws: the measurement system cannot resolve this process"
         )
     mu, sd = mu[keep], np.sqrt(var_p[keep])
-    cp, cpk, cpm = _draw_indices(mu, sd, lsl, usl, target)
-    cp_med, cp_int = _summary(cp, level)
+    cp, cpk, cpm = draw_indices(mu, sd, lsl, usl, target)
+    cp_med, cp_int = summarise_draws(cp, level)
     if gauge_sd == 0.0 and cp is not None:  # closed form: Cp = Cp_hat * sqrt(chi2_nu / nu)
         c = (usl - lsl) / (6 * s)
         q = stats.chi2.ppf([0.5, (1 - level) / 2, (1 + level) / 2], n - 1) / (n - 1)
@@ -96,8 +96,8 @@ def _bayes_capability(y, lsl, usl, target, gauge_sd, level, threshold, n_draws, 
             float(c * math.sqrt(q[0])),
             Interval(float(c * math.sqrt(q[1])), float(c * math.sqrt(q[2])), level),
         )
-    cpk_med, cpk_int = _summary(cpk, level)
-    cpm_med, cpm_int = _summary(cpm, level)
+    cpk_med, cpk_int = summarise_draws(cpk, level)
+    cpm_med, cpm_int = summarise_draws(cpm, level)
     return BayesCapability(
         cp=cp_med,
         cp_interval=cp_int,

@@ -40,7 +40,7 @@ variance: $\\sigma_p^2 = \\sigma^2 - u_g^2$; the intervals then use
 $\\nu_p = \\nu(\\sigma_p^2/\\sigma^2)^2$ (delta method), and Bayesian draws with
 $\\sigma^2 \\le u_g^2$ are discarded.
 
-Bayesian credible intervals (`bayes=True`) are described in `_bayes_capability`, the
+Bayesian credible intervals (`bayes=True`) are described in `bayes_capability`, the
 stability check in `_stability`, the predicted capability in `_prediction`.
 """
 
@@ -52,9 +52,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import AnalysisError, InputError
-from ._bayes import BayesCapability, _bayes_capability
-from ._indices import Interval, _confidence_intervals, _indices, _limits
-from ._sigma import Convention, SigmaEstimate, _as_groups, _check_convention, sigma_within
+from ._bayes import BayesCapability, bayes_capability
+from ._indices import Interval, capability_indices, confidence_intervals, spec_limits
+from ._sigma import Convention, SigmaEstimate, as_groups, check_convention, sigma_within
 
 
 @dataclass(frozen=True)
@@ -184,20 +184,20 @@ def capability(
     variance swallows the process variance.
     """
     _check_options(convention, confidence, gauge_sd)
-    lsl, usl, target = _limits(lsl, usl, target)
-    y, groups = _as_groups(data, subgroups)
+    lsl, usl, target = spec_limits(lsl, usl, target)
+    y, groups = as_groups(data, subgroups)
     n = int(y.size)
     mu = float(np.mean(y))
     est, s_all = _observed_sigmas(y, groups, sigma_method, convention)
     sig_w, nu_w = _gauge_adjust(est.value, est.df, gauge_sd, "within")
     sig_o, nu_o = _gauge_adjust(s_all, float(n - 1), gauge_sd, "overall")
-    within = _indices(mu, sig_w, lsl, usl, target)  # cp, cpl, cpu, cpk, cpm
-    overall = _indices(mu, sig_o, lsl, usl, target)  # pp, ppl, ppu, ppk, (cpm)
-    intervals = _confidence_intervals(
+    within = capability_indices(mu, sig_w, lsl, usl, target)  # cp, cpl, cpu, cpk, cpm
+    overall = capability_indices(mu, sig_o, lsl, usl, target)  # pp, ppl, ppu, ppk, (cpm)
+    intervals = confidence_intervals(
         within, overall, n, mu, target, sig_w, nu_w, nu_o, confidence, convention
     )
     bayes_res = (
-        _bayes_capability(y, lsl, usl, target, gauge_sd, confidence, threshold, n_draws, seed)
+        bayes_capability(y, lsl, usl, target, gauge_sd, confidence, threshold, n_draws, seed)
         if bayes
         else None
     )
@@ -227,7 +227,7 @@ def capability(
 
 
 def _check_options(convention: str, confidence: float, gauge_sd: float) -> None:
-    _check_convention(convention)
+    check_convention(convention)
     if not 0.0 < confidence < 1.0:
         raise InputError(f"confidence must be in (0, 1), got {confidence!r}", value=confidence)
     if not (math.isfinite(gauge_sd) and gauge_sd >= 0.0):

@@ -36,10 +36,10 @@ class Interval:
         return f"[{self.lower:.4g}, {self.upper:.4g}] ({self.level:.0%})"
 
 
-_NAN_INTERVAL = (math.nan, math.nan)
+NAN_INTERVAL = (math.nan, math.nan)
 
 
-def _limits(lsl, usl, target):
+def spec_limits(lsl, usl, target):
     lsl = None if lsl is None else float(lsl)
     usl = None if usl is None else float(usl)
     if lsl is None and usl is None:
@@ -54,7 +54,7 @@ def _limits(lsl, usl, target):
     return lsl, usl, None if target is None else float(target)
 
 
-def _indices(mu, sigma, lsl, usl, target):
+def capability_indices(mu, sigma, lsl, usl, target):
     nan = math.nan
     cp = (usl - lsl) / (6 * sigma) if lsl is not None and usl is not None else nan
     cpl = (mu - lsl) / (3 * sigma) if lsl is not None else nan
@@ -69,14 +69,14 @@ def _indices(mu, sigma, lsl, usl, target):
 
 def _chi2_interval(c, nu, alpha, level) -> Interval:
     if not math.isfinite(c) or nu <= 0:
-        return Interval(*_NAN_INTERVAL, level)
+        return Interval(*NAN_INTERVAL, level)
     lo, hi = stats.chi2.ppf([alpha / 2, 1 - alpha / 2], nu)
     return Interval(c * math.sqrt(lo / nu), c * math.sqrt(hi / nu), level)
 
 
-def _bissell(c, n, nu, z, level) -> Interval:
+def bissell(c, n, nu, z, level) -> Interval:
     if not math.isfinite(c) or c == 0.0:
-        return Interval(*_NAN_INTERVAL, level)
+        return Interval(*NAN_INTERVAL, level)
     half = z * math.sqrt(1.0 / (9.0 * n * c**2) + 1.0 / (2.0 * nu))
     return Interval(c * (1 - half), c * (1 + half), level)
 
@@ -84,7 +84,7 @@ def _bissell(c, n, nu, z, level) -> Interval:
 def _cpm_interval(cpm, mu, target, sigma, nu, n, alpha, level, convention) -> Interval:
     """Boyles' interval of Cpm; qcc uses the degrees of freedom $n(1+r^2)/(1+2r^2)$."""
     if not math.isfinite(cpm):
-        return Interval(*_NAN_INTERVAL, level)
+        return Interval(*NAN_INTERVAL, level)
     r = (mu - target) / sigma
     if convention == "qcc":
         nu_m = n * (1 + r**2) / (1 + 2 * r**2)
@@ -93,13 +93,13 @@ def _cpm_interval(cpm, mu, target, sigma, nu, n, alpha, level, convention) -> In
     return _chi2_interval(cpm, nu_m, alpha, level)
 
 
-def _confidence_intervals(
+def confidence_intervals(
     within, overall, n, mu, target, sigma_within, df_within, df_overall, level, convention
 ) -> dict[str, Interval]:
     """The `*_ci` fields of a capability result.
 
     `within` is `(cp, cpl, cpu, cpk, cpm)` from the within sigma, `overall`
-    `(pp, ppl, ppu, ppk, _)` from the overall sigma (see `_indices`).
+    `(pp, ppl, ppu, ppk, _)` from the overall sigma (see `capability_indices`).
     """
     cp, cpl, cpu, cpk, cpm = within
     pp, _, _, ppk, _ = overall
@@ -109,10 +109,10 @@ def _confidence_intervals(
     nu_w, nu_o = df_within, df_overall
     return {
         "cp_ci": _chi2_interval(cp, nu_w, alpha, level),
-        "cpl_ci": _bissell(cpl, n, nu_w, z1, level),
-        "cpu_ci": _bissell(cpu, n, nu_w, z1, level),
-        "cpk_ci": _bissell(cpk, n, nu_w, z2, level),
+        "cpl_ci": bissell(cpl, n, nu_w, z1, level),
+        "cpu_ci": bissell(cpu, n, nu_w, z1, level),
+        "cpk_ci": bissell(cpk, n, nu_w, z2, level),
         "cpm_ci": _cpm_interval(cpm, mu, target, sigma_within, nu_w, n, alpha, level, convention),
         "pp_ci": _chi2_interval(pp, nu_o, alpha, level),
-        "ppk_ci": _bissell(ppk, n, nu_o, z2, level),
+        "ppk_ci": bissell(ppk, n, nu_o, z2, level),
     }

@@ -16,9 +16,9 @@ import numpy as np
 
 from .. import _config
 from ..errors import InputError
-from ._bayes import _draw_indices, _posterior_draws, _summary
+from ._bayes import draw_indices, posterior_draws, summarise_draws
 from ._capability import CapabilityResult
-from ._indices import Interval, _bissell, _indices
+from ._indices import Interval, bissell, capability_indices
 
 stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 
@@ -103,18 +103,18 @@ def predict_capability(
     else:
         sd, nu, s_obs = result.sigma_within, result.df_within, result.sd_within_observed
     mean_after = result.mean - gain * offset
-    cp, _, _, cpk, cpm = _indices(mean_after, sd, lsl, usl, target)
+    cp, _, _, cpk, cpm = capability_indices(mean_after, sd, lsl, usl, target)
     n_eff = 1.0 / (1.0 / n + (gain * u_offset) ** 2 / sd**2)
     z = float(stats.norm.ppf(1 - (1 - result.confidence) / 2))
-    cpk_ci = _bissell(cpk, n_eff, nu, z, result.confidence)
+    cpk_ci = bissell(cpk, n_eff, nu, z, result.confidence)
 
     nu_obs = nu / ((sd**2 / s_obs**2) ** 2) if result.gauge_sd > 0 else nu
-    rng, mu, var = _posterior_draws(n, result.mean, s_obs, nu_obs, n_draws, seed)
+    rng, mu, var = posterior_draws(n, result.mean, s_obs, nu_obs, n_draws, seed)
     var_p = var - result.gauge_sd**2
     keep = var_p > 0.0
     mu = mu[keep] - gain * offset + gain * u_offset * rng.standard_normal(int(keep.sum()))
-    _, cpk_draws, _ = _draw_indices(mu, np.sqrt(var_p[keep]), lsl, usl, target)
-    med, interval = _summary(cpk_draws, result.confidence)
+    _, cpk_draws, _ = draw_indices(mu, np.sqrt(var_p[keep]), lsl, usl, target)
+    med, interval = summarise_draws(cpk_draws, result.confidence)
     return PredictedCapability(
         offset=offset,
         u_offset=float(u_offset),

@@ -31,7 +31,7 @@ _CONVENTIONS = ("piecs", "qcc")
 _METHODS = ("auto", "rbar", "sbar", "pooled", "mr", "overall")
 
 
-def _check_convention(convention: str) -> None:
+def check_convention(convention: str) -> None:
     if convention not in _CONVENTIONS:
         raise InputError(f"unknown convention {convention!r}; expected one of {_CONVENTIONS}")
 
@@ -72,7 +72,7 @@ def d2_constant(n: int, *, convention: Convention = "piecs") -> float:
     return round(exact, 3) if convention == "qcc" else exact
 
 
-def _d3_constant(n: int) -> float:
+def d3_constant(n: int) -> float:
     if n == 2:
         return math.sqrt(2.0 - 4.0 / math.pi)
     ew, ew2 = _range_moments(int(n))
@@ -118,7 +118,7 @@ class SigmaEstimate:
         return f"SigmaEstimate({self.value:.6g}, method={self.method!r}, df={self.df:.1f})"
 
 
-def _as_groups(data, subgroups) -> tuple[np.ndarray, list[np.ndarray] | None]:
+def as_groups(data, subgroups) -> tuple[np.ndarray, list[np.ndarray] | None]:
     """Flatten the input; return (all values, subgroups or None for individuals)."""
     if subgroups is not None:
         y = np.asarray(data, dtype=float)
@@ -184,10 +184,10 @@ def sigma_within(
 
     **Returns:** a [`SigmaEstimate`][] with its effective degrees of freedom.
     """
-    _check_convention(convention)
+    check_convention(convention)
     if method not in _METHODS:
         raise InputError(f"unknown sigma method {method!r}; expected one of {_METHODS}")
-    y, groups = _as_groups(data, subgroups)
+    y, groups = as_groups(data, subgroups)
     n = y.size
     if method == "auto":
         method = "mr" if groups is None or all(g.size == 1 for g in groups) else "rbar"
@@ -224,7 +224,7 @@ def sigma_within(
         rbar = float(np.mean([np.ptp(g) for g in groups]))
         d2 = d2_constant(k, convention=convention)
         sigma = rbar / d2
-        df = float(n - 1) if convention == "qcc" else m * d2**2 / (2.0 * _d3_constant(k) ** 2)
+        df = float(n - 1) if convention == "qcc" else m * d2**2 / (2.0 * d3_constant(k) ** 2)
         return SigmaEstimate(sigma, "rbar", df)
     # sbar
     sbar = float(np.mean([np.std(g, ddof=1) for g in groups]))

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import AnalysisError, InputError
-from ._sigma import _d3_constant
+from ._sigma import d3_constant
 
 
 @dataclass(frozen=True)
@@ -133,7 +133,7 @@ def stability_check(
     mr = np.abs(np.diff(y))
     mr_bar = float(mr.mean())
     d2 = 2.0 / math.sqrt(math.pi)
-    d4 = 1.0 + 3.0 * _d3_constant(2) / d2
+    d4 = 1.0 + 3.0 * d3_constant(2) / d2
     c = float(y.mean()) if center is None else float(center)
     s = mr_bar / d2 if sigma is None else float(sigma)
     if not s > 0.0:

@@ -96,7 +96,7 @@ def _posterior(m0, s0, samples, prior_sd) -> _Post:
     return _Post(m, s, samples, wts)
 
 
-def _p_out(d, tau, lo, hi):
+def p_out(d, tau, lo, hi):
     if np.all(tau == 0):
         return ((d < lo) | (d > hi)).astype(float)
     with np.errstate(divide="ignore"):
@@ -114,12 +114,12 @@ def _loss(c, post: _Post, tol, st: DecisionSettings, k: float, adjust):
         mean = post.m + c
         ed2 = mean**2 + post.s**2 + sa2 + st.process_sd**2
         tau = np.sqrt(post.s**2 + sa2 + st.process_sd**2)
-        pout = _p_out(mean, tau, lo, hi)
+        pout = p_out(mean, tau, lo, hi)
     else:
         d = post.samples[None, :] + c[:, None]
         ed2 = np.sum(post.weights * d**2, axis=1) + sa2 + st.process_sd**2
         tau = np.sqrt(sa2 + st.process_sd**2)[:, None]
-        pout = np.sum(post.weights * _p_out(d, tau, lo, hi), axis=1)
+        pout = np.sum(post.weights * p_out(d, tau, lo, hi), axis=1)
     return n * (k * ed2 + st.out_of_tolerance_cost * pout) + st.adjustment_cost * adjust
 
 
@@ -151,7 +151,7 @@ def _p_exceed(post: _Post, band: float) -> float:
 
 
 @dataclass(frozen=True)
-class _Core:
+class CoreVerdict:
     post: _Post
     p_exceed: float
     actions: tuple[ActionLoss, ...]
@@ -162,7 +162,9 @@ class _Core:
     justified: bool
 
 
-def _evaluate(m0, s0, samples, tol, st: DecisionSettings, k, band, max_corr, t, dof) -> _Core:
+def evaluate_actions(
+    m0, s0, samples, tol, st: DecisionSettings, k, band, max_corr, t, dof
+) -> CoreVerdict:
     post = _posterior(m0, s0, samples, st.prior_sd)
     lam = st.feedback_gain
     shrink = t if st.prior_sd is None else t + s0**2 / st.prior_sd**2
@@ -202,4 +204,4 @@ def _evaluate(m0, s0, samples, tol, st: DecisionSettings, k, band, max_corr, t, 
     if require is None:
         require = st.prior_sd is None
     justified = c_b != 0.0 and (significant or not require)
-    return _Core(post, p_ex, tuple(actions), bayes, before, after, significant, justified)
+    return CoreVerdict(post, p_ex, tuple(actions), bayes, before, after, significant, justified)

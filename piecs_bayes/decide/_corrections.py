@@ -30,8 +30,8 @@ import math
 import numpy as np
 
 from .. import _config
-from ._actions import _p_out
-from ._decision import _scales
+from ._actions import p_out
+from ._decision import feature_scales
 from ._settings import DecisionSettings
 
 special = _config.LazyModule("scipy.special")
@@ -42,7 +42,7 @@ _GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
 
 def _f(x, tau, lo, hi, k, c_out):
     """$k x^2 + C_\\text{out}P_\\text{out}(x)$ (the $x$-dependent part of the loss)."""
-    return k * x * x + c_out * _p_out(x, tau, lo, hi)
+    return k * x * x + c_out * p_out(x, tau, lo, hi)
 
 
 def corrections(mean, sd, process_sd, tolerance, st: DecisionSettings) -> np.ndarray:
@@ -64,7 +64,7 @@ def corrections(mean, sd, process_sd, tolerance, st: DecisionSettings) -> np.nda
     )  # fmt: skip
     lo, hi = (float(t) for t in tolerance)
     width = hi - lo
-    band, k, max_corr = _scales(st, width)
+    band, k, max_corr = feature_scales(st, width)
     if st.prior_sd is None:
         m, s = m0, s0
     else:

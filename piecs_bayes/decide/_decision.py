@@ -46,10 +46,10 @@ import numpy as np
 
 from .. import _config
 from ..errors import InputError
-from ._actions import ActionLoss, _evaluate
+from ._actions import ActionLoss, evaluate_actions
 from ._conformance import Conformance
 from ._settings import DecisionSettings
-from ._verdict import Verdict, _Words, clear_verdict, conclude
+from ._verdict import Verdict, VerdictWords, clear_verdict, conclude
 
 special = _config.LazyModule("scipy.special")
 
@@ -204,10 +204,10 @@ def _more_points(m0, s0, samples, u_sys, n, tol, st, k, band, max_corr, t, dof) 
     prev = n
     for n_new in cands:
         s_new, smp, d_new = _scaled(m0, s0, samples, u_sys, n, n_new, dof)
-        if clear_verdict(_evaluate(m0, s_new, smp, tol, st, k, band, max_corr, t, d_new)):
+        if clear_verdict(evaluate_actions(m0, s_new, smp, tol, st, k, band, max_corr, t, d_new)):
             for n_try in range(prev + 1, n_new):  # the smallest decisive count
                 s_try, smp, d_try = _scaled(m0, s0, samples, u_sys, n, n_try, dof)
-                core = _evaluate(m0, s_try, smp, tol, st, k, band, max_corr, t, d_try)
+                core = evaluate_actions(m0, s_try, smp, tol, st, k, band, max_corr, t, d_try)
                 if clear_verdict(core) is not None:
                     return n_try - n
             return n_new - n
@@ -258,15 +258,15 @@ def decide(
     m0, s0, smp, dof = _checked_inputs(
         mean, sd, samples, u_systematic, dof, run_index, n_points, feature
     )
-    band, k, max_corr = _scales(st, hi - lo)
-    core = _evaluate(m0, s0, smp, (lo, hi), st, k, band, max_corr, run_index, dof)
+    band, k, max_corr = feature_scales(st, hi - lo)
+    core = evaluate_actions(m0, s0, smp, (lo, hi), st, k, band, max_corr, run_index, dof)
     more = None
     if clear_verdict(core) is None and n_points is not None:
         more = _more_points(
             m0, s0, smp, u_systematic, n_points, (lo, hi), st, k, band, max_corr, run_index,
             dof,
         )  # fmt: skip
-    words = _Words(coordinate, float(scale))
+    words = VerdictWords(coordinate, float(scale))
     out = conclude(
         core, band=band, max_corr=max_corr, st=st, n_points=n_points, more=more, w=words, dof=dof
     )
@@ -353,7 +353,7 @@ def _checked_options(u_systematic, s0, dof, run_index, n_points, has_samples, fe
     return dof
 
 
-def _scales(st: DecisionSettings, width: float) -> tuple[float, float, float]:
+def feature_scales(st: DecisionSettings, width: float) -> tuple[float, float, float]:
     """Null band, Taguchi loss constant $k$ and largest allowed correction (defaults filled)."""
     band = 0.1 * width if st.null_band is None else st.null_band
     k = st.loss_k if st.loss_k is not None else st.out_of_tolerance_cost / (width / 2) ** 2

@@ -3,7 +3,7 @@
 [`conclude`][] picks the verdict from the evaluated actions (`_actions._Core`) and
 writes, in the same branch, why: the reasons can never contradict the verdict. The
 reasons are plain sentences with lengths in µm on the coordinate the tolerance is
-drawn on (`_Words`): on the diameter for a diameter, on Z for a face, along the
+drawn on (`VerdictWords`): on the diameter for a diameter, on Z for a face, along the
 normal for tapers and arcs. The rule itself is in the `_decision` module docstring:
 
 1. `compensate` when adjusting lowers the expected cost, the deviation is
@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from ._actions import _Core
+from ._actions import CoreVerdict
 from ._conformance import Conformance
 from ._settings import DecisionSettings
 
@@ -37,7 +37,7 @@ _ON = {
 
 
 @dataclass(frozen=True)
-class _Words:
+class VerdictWords:
     """Lengths (mm of normal deviation) as drawn, in µm: `scale` × value on `coordinate`."""
 
     coordinate: str = "normal"
@@ -83,7 +83,7 @@ class Conclusion:
     reasons: tuple[str, ...]
 
 
-def _measured(c: Conformance, w: _Words, dof: float) -> str:
+def _measured(c: Conformance, w: VerdictWords, dof: float) -> str:
     ndof = f", {dof:.0f} effective degrees of freedom" if math.isfinite(dof) else ""
     text = (
         f"as measured {w.dev_u(c.value, c.expanded)} {w.on} (± U, 95 %{ndof}); tolerance "
@@ -94,7 +94,7 @@ def _measured(c: Conformance, w: _Words, dof: float) -> str:
     return text
 
 
-def _significance(core: _Core, band: float, st: DecisionSettings, w: _Words) -> str:
+def _significance(core: CoreVerdict, band: float, st: DecisionSettings, w: VerdictWords) -> str:
     text = (
         f"null band ±{w.size(band)}: smaller deviations are not worth correcting; the "
         f"deviation is beyond it with probability {core.p_exceed:.3f}, "
@@ -112,7 +112,7 @@ def _significance(core: _Core, band: float, st: DecisionSettings, w: _Words) -> 
     return text
 
 
-def _cost(core: _Core, st: DecisionSettings) -> str:
+def _cost(core: CoreVerdict, st: DecisionSettings) -> str:
     none, b = core.actions[0], core.bayes
     unit = f"cost units: an out-of-tolerance part costs {st.out_of_tolerance_cost:g}"
     if b.correction == 0.0:
@@ -123,7 +123,9 @@ def _cost(core: _Core, st: DecisionSettings) -> str:
     )
 
 
-def _compensated(core: _Core, gain: float, corr: float, w: _Words, why: str = "") -> str:
+def _compensated(
+    core: CoreVerdict, gain: float, corr: float, w: VerdictWords, why: str = ""
+) -> str:
     a = core.after
     after = (
         f"on nominal ± {w.size(a.expanded)}"
@@ -136,7 +138,7 @@ def _compensated(core: _Core, gain: float, corr: float, w: _Words, why: str = ""
     )
 
 
-def _undecided(core: _Core, n_points, more, st, w: _Words) -> tuple[Verdict, str]:
+def _undecided(core: CoreVerdict, n_points, more, st, w: VerdictWords) -> tuple[Verdict, str]:
     """Verdict and reason when the evidence is not clear (`more`: extra points or None)."""
     target = core.after if core.justified else core.before
     lo_a, hi_a = target.acceptance
@@ -171,7 +173,7 @@ def _undecided(core: _Core, n_points, more, st, w: _Words) -> tuple[Verdict, str
     )
 
 
-def clear_verdict(core: _Core) -> Verdict | None:
+def clear_verdict(core: CoreVerdict) -> Verdict | None:
     """The verdict when the evidence is clear, else None ('measure more')."""
     if core.justified:
         if core.bayes.blocked:
@@ -180,7 +182,7 @@ def clear_verdict(core: _Core) -> Verdict | None:
     return "do not compensate" if core.before.state == "conforms" else None
 
 
-def conclude(core: _Core, *, band, max_corr, st, n_points, more, w, dof) -> Conclusion:
+def conclude(core: CoreVerdict, *, band, max_corr, st, n_points, more, w, dof) -> Conclusion:
     """The verdict with the gain and correction it applies, and every reason for it."""
     b = core.bayes
     reasons = [_measured(core.before, w, dof), _significance(core, band, st, w), _cost(core, st)]

@@ -63,11 +63,11 @@ from ._tracking import (
     HYPER_GRID,
     Track,
     TrackModel,
-    _checked,
-    _transfer,
+    checked_values,
     grid_weights,
     run_grid,
     track,
+    transfer_of,
 )
 
 POLICIES = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma", "bayes")
@@ -249,7 +249,7 @@ def replay(
 
     **Returns:** a [`PolicyResult`][] (`realised` $= \\delta_k + \\gamma c_k$).
     """
-    dev, uu, declared = _checked(deviation, u, tool_changes, missing=True)
+    dev, uu, declared = checked_values(deviation, u, tool_changes, missing=True)
     c, flags, _ = replay_runs(
         dev[None], uu[None], policy=policy, settings=settings, tolerance=tolerance,
         tool_changes=tool_changes, decision_settings=decision_settings,
@@ -294,7 +294,7 @@ def replay_runs(
         raise InputError("deviations must be finite at the measured parts (NaN only at "
                          "parts not measured)")  # fmt: skip
     uu = np.broadcast_to(np.asarray(u, dtype=float), dev.shape)
-    _, _, declared = _checked(dev[0], uu[0], tool_changes, missing=True)
+    _, _, declared = checked_values(dev[0], uu[0], tool_changes, missing=True)
     if not (np.all(np.isfinite(uu[:, inspected])) and np.all(uu[:, inspected] > 0)):
         raise InputError("u must be finite numbers > 0 (mm)")
     uu = np.where(inspected, uu, np.nanmax(uu[:, inspected]))  # not used: not measured
@@ -302,7 +302,7 @@ def replay_runs(
     st = _check_settings(policy, settings)
     if policy == "bayes":
         ds = decision_settings if decision_settings is not None else BAYES_DECISION
-        tr = _transfer(st.get("transfer", 1.0))
+        tr = transfer_of(st.get("transfer", 1.0))
         c, pit = bayes_loop(dev, uu, declared, tol, ds, st.get("model"), tr, inspected,
                             source, gain)  # fmt: skip
         return c, np.zeros(dev.shape[0], dtype=int), pit
@@ -429,7 +429,7 @@ def next_part(
     decision, with the last correction applied), `model` (the [`TrackModel`][] used or
     the grid's best), `decision` (the [`Decision`][]) and `track` (the [`Track`][]).
     """
-    y, uu, declared = _checked(values, u, tool_changes)
+    y, uu, declared = checked_values(values, u, tool_changes)
     tol = _tol(tolerance)
     c_prev = np.zeros(y.size) if applied is None else np.asarray(applied, dtype=float)
     if c_prev.shape != y.shape or not np.all(np.isfinite(c_prev)):

@@ -34,7 +34,7 @@ from .. import _config
 from ..decide import DecisionSettings, corrections
 from ..errors import InputError
 from ._filter import mixture_filter
-from ._tracking import GRID_LOG_PRIOR, HYPER_GRID, _params, grid_weights
+from ._tracking import GRID_LOG_PRIOR, HYPER_GRID, grid_weights, model_params
 
 special = _config.LazyModule("scipy.special")
 
@@ -169,7 +169,7 @@ def _bayes_chunk(dev, u, declared, tolerance, ds, model, transfer, inspected, so
     models = HYPER_GRID if model is None else (model,)
     ng = len(models)
     log_prior = GRID_LOG_PRIOR if model is None else np.zeros(1)
-    par = _params(models, r_)
+    par = model_params(models, r_)
     scat2 = par["scatter2"].reshape(r_, ng)
     beta, u_beta = transfer
     ds, limit = loop_settings(ds, tolerance)

@@ -282,7 +282,7 @@ class Track:
 # --------------------------------------------------------------------------- helpers
 
 
-def _checked(values, u, tool_changes, missing: bool = False):
+def checked_values(values, u, tool_changes, missing: bool = False):
     """`(y, u, declared)` checked; with `missing`, NaN values are parts not measured
     (part 0 must be measured) and their `u` may be NaN too."""
     y = np.asarray(values, dtype=float)
@@ -307,7 +307,7 @@ def _checked(values, u, tool_changes, missing: bool = False):
     return y, uu, declared
 
 
-def _params(models, reps: int = 1) -> dict:
+def model_params(models, reps: int = 1) -> dict:
     """Filter parameters `(reps * G,)` from models (repeated per series, models fastest)."""
 
     def col(fn):
@@ -349,7 +349,7 @@ def run_grid(y, u, declared, models, **kw) -> dict:
     out = mixture_filter(
         np.repeat(y, g, axis=0),
         np.repeat(u**2, g, axis=0),
-        _params(models, r_),
+        model_params(models, r_),
         np.repeat(np.broadcast_to(np.atleast_2d(declared), (r_, n)), g, axis=0),
         **kw,
     )
@@ -418,13 +418,13 @@ def fit_track_model(values, u, *, tool_changes=()) -> TrackModel:
     $\\prod_k p(y_k \\mid y_{<k})$ times its prior `GRID_LOG_PRIOR` (see the module
     doc); finite for any run of at least one part.
     """
-    y, uu, declared = _checked(values, u, tool_changes, missing=True)
+    y, uu, declared = checked_values(values, u, tool_changes, missing=True)
     out = run_grid(y, uu, declared, HYPER_GRID)
     total = out["loglik"][0].sum(1) + GRID_LOG_PRIOR
     return HYPER_GRID[int(np.argmax(total))]
 
 
-def _transfer(transfer) -> tuple[float, float]:
+def transfer_of(transfer) -> tuple[float, float]:
     if isinstance(transfer, tuple | list):
         beta, u_beta = (float(t) for t in transfer)
     else:
@@ -451,8 +451,8 @@ def track(values, u, *, model: TrackModel | None = None, tool_changes=(), transf
 
     **Returns:** a [`Track`][].
     """
-    y, uu, declared = _checked(values, u, tool_changes, missing=True)
-    beta, u_beta = _transfer(transfer)
+    y, uu, declared = checked_values(values, u, tool_changes, missing=True)
+    beta, u_beta = transfer_of(transfer)
     models = HYPER_GRID if model is None else (model,)
     out = run_grid(y, uu, declared, models)
     n = y.size
@@ -474,7 +474,7 @@ def track(values, u, *, model: TrackModel | None = None, tool_changes=(), transf
     p_step = np.sum(fin[:, None] * out["p_lag"][0, :, :, 2], 0)
     g = len(models)
     sm, sv = smoother(
-        np.repeat(y[None], g, 0), np.repeat(uu[None] ** 2, g, 0), _params(models),
+        np.repeat(y[None], g, 0), np.repeat(uu[None] ** 2, g, 0), model_params(models),
         np.repeat(declared[None], g, 0), out["p_lag"][0, :, :, 1], out["p_lag"][0, :, :, 2],
     )  # fmt: skip
     smean = np.sum(fin[:, None] * sm, 0)

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import AnalysisError, InputError
 from ..geometry import Profile
-from ._features import FeatureFit, _surface_and_nominal, embed_free
+from ._features import FeatureFit, embed_free, surface_and_nominal
 from ._profile_result import ProfileFit
 from ._sigma import DECLARED_DOF, probe_sigma, sigma_arrays
 from .lsq import COV_OK, LsqResult, Status, flat_structure, is_linear, result_from_arrays
@@ -301,7 +301,7 @@ class BatchFit:
                 surface, nominal = known[0][:n], known[1][:n]
             else:
                 surface, nominal = map(
-                    np.asarray, _surface_and_nominal(f, centres, values, float(self.ball_radius))
+                    np.asarray, surface_and_nominal(f, centres, values, float(self.ball_radius))
                 )
             fits[f.id] = FeatureFit(
                 feature=f,

@@ -88,7 +88,7 @@ def feature_residuals(kind: str, free: tuple[int, ...]):
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def _surface_and_nominal(feature: Feature, centres, values, ball_radius):
+def surface_and_nominal(feature: Feature, centres, values, ball_radius):
     """Measured surface points (ball-corrected with the fitted normal) and their
     nearest nominal points; jitted per feature (eager JAX calls cost ~ms each)."""
     surface = centres - ball_radius * feature.outward_normal(centres, values)
@@ -223,10 +223,10 @@ def fit_feature(
     """
     if method not in ("lsq", "robust"):
         raise ValueError(f"unknown method {method!r}; expected 'lsq' or 'robust'")
-    free = _free_parameters(feature, fix)
+    free = free_parameters(feature, fix)
     centres = np.asarray(centres, dtype=float)
     n = len(centres)
-    _check_point_count(feature, n, len(free))
+    check_point_count(feature, n, len(free))
     fn = feature_residuals(feature.kind, tuple(free))
     n_pad = padded_size(n)
     padded = np.vstack([centres, np.repeat(centres[:1], n_pad - n, axis=0)])
@@ -244,7 +244,7 @@ def fit_feature(
     values, cov = embed_free(feature.nparams, free, res.params, res.covariance)
     se = None if cov is None else np.sqrt(np.diag(cov))
     surface, nominal = map(
-        np.asarray, _surface_and_nominal(feature, centres, values, float(ball_radius))
+        np.asarray, surface_and_nominal(feature, centres, values, float(ball_radius))
     )
     weights = np.asarray(res.weights)[:n]
     outliers = np.asarray(res.outliers, dtype=int)
@@ -279,7 +279,7 @@ def embed_free(nparams: int, free, params, cov=None):
     return values, full
 
 
-def _free_parameters(feature: Feature, fix: Sequence[str]) -> list[int]:
+def free_parameters(feature: Feature, fix: Sequence[str]) -> list[int]:
     """Indices of the parameters not in `fix`; every fixed name must exist."""
     for name in fix:
         if name not in feature.param_names:
@@ -291,7 +291,7 @@ def _free_parameters(feature: Feature, fix: Sequence[str]) -> list[int]:
     return [i for i, n in enumerate(feature.param_names) if n not in fix]
 
 
-def _check_point_count(feature: Feature, n: int, n_free: int) -> None:
+def check_point_count(feature: Feature, n: int, n_free: int) -> None:
     """`n` points must leave at least one degree of freedom."""
     if n <= n_free:
         raise InputError(

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import Profile
-from ._features import FeatureFit, _check_point_count, _free_parameters, embed_free, padded_size
+from ._features import FeatureFit, check_point_count, embed_free, free_parameters, padded_size
 from ._profile_result import ProfileFit
 from ._sigma import probe_sigma
 from .lsq import Status, flat_structure, result_from_arrays
@@ -252,8 +252,8 @@ def _make_plan(profile, feature_ids, lines, fix, min_points, file, loss_name) ->
                 f"{counts[j]} point(s) are too few for a {f.kind}: at least "
                 f"{min_points[f.kind]} are needed", file=file, feature=f.id, value=int(counts[j]),
             )  # fmt: skip
-        free = tuple(_free_parameters(f, tuple(fix.get(f.id, ()))))
-        _check_point_count(f, int(counts[j]), len(free))
+        free = tuple(free_parameters(f, tuple(fix.get(f.id, ()))))
+        check_point_count(f, int(counts[j]), len(free))
         specs.setdefault((f.kind, free, padded_size(counts[j])), []).append(j)
     if not specs:
         raise InputError("no probe point belongs to any profile feature", file=file)

@@ -103,13 +103,13 @@ class ProgramAdjustment:
         )
 
 
-def _read(program):
+def read_program(program):
     from ._modal import GcodeProgram, read_gcode
 
     return program if isinstance(program, GcodeProgram) else read_gcode(program)
 
 
-def _candidates(program):
+def candidates(program):
     moves = [m for m in program.moves if m.comp is not None]
     if not moves:
         moves = [m for m in program.moves if m.kind != "rapid"]
@@ -171,9 +171,9 @@ def map_blocks_to_profile(program, profile: Profile, *, tol_mm: float = 0.01, ma
     **Returns:** a :class:`BlockMap`. Raises AnalysisError naming the block or
     feature that cannot be mapped.
     """
-    program = _read(program)
+    program = read_program(program)
     name = program.name or "<program>"
-    moves = _candidates(program)
+    moves = candidates(program)
     if not moves:
         raise AnalysisError(f"{name}: no finish-cut block (no compensated or feed move) found")
     by_line = {m.line: m for m in moves}
@@ -342,7 +342,7 @@ def adjust_program(
     """
     from ._modal import parse_gcode
 
-    program = _read(program)
+    program = read_program(program)
     name = program.name or "<program>"
     if nominal_profile.ids != adjusted_profile.ids:
         raise InputError(

@@ -42,7 +42,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ._dprnt import DprntFormat, parse_dprnt
-from ._lexer import SourceLine, _lex_line, read_text_lossless
+from ._lexer import SourceLine, lex_line, read_text_lossless
 
 MM_PER_INCH = 25.4
 PROBE_CODES = {"linuxcnc": ("G38.2", "G38.3"), "fanuc": ("G31",)}
@@ -207,7 +207,7 @@ def read_gauge_program(
         number += 1
         if ctrl == "fanuc" and _fanuc_statement(raw, number, name, st, moves):
             continue
-        src = _lex_line(raw, "", number, name)
+        src = lex_line(raw, "", number, name)
         if src.percent or src.is_blank:
             continue
         if ctrl == "linuxcnc":

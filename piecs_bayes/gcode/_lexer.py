@@ -130,7 +130,7 @@ class GcodeText:
         lines = list(self.lines)
         for number, text in texts.items():
             old = self.line(number)
-            lines[number - 1] = _lex_line(text, old.eol, number, self.name)
+            lines[number - 1] = lex_line(text, old.eol, number, self.name)
         return replace(self, lines=tuple(lines))
 
 
@@ -138,7 +138,7 @@ def _error(msg: str, name: str | None, number: int, text: str) -> InputError:
     return InputError(f"{msg}: {text.strip()!r}", file=name or "<program>", line=number)
 
 
-def _lex_line(text: str, eol: str, number: int, name: str | None) -> SourceLine:
+def lex_line(text: str, eol: str, number: int, name: str | None) -> SourceLine:
     words: list[Word] = []
     comments: list[Comment] = []
     stripped = text.strip()
@@ -200,11 +200,11 @@ def lex_gcode(text: str, *, name: str | None = None) -> GcodeText:
     pos, number = 0, 0
     for m in _EOL.finditer(text):
         number += 1
-        lines.append(_lex_line(text[pos : m.start()], m.group(), number, name))
+        lines.append(lex_line(text[pos : m.start()], m.group(), number, name))
         pos = m.end()
     if pos < len(text):
         number += 1
-        lines.append(_lex_line(text[pos:], "", number, name))
+        lines.append(lex_line(text[pos:], "", number, name))
     return GcodeText(tuple(lines), name)
 
 

@@ -93,9 +93,9 @@ def finish_cut_tools(
 
     **Returns:** a [`FinishCutTools`][].
     """
-    from ._adjust import _candidates, _read, map_blocks_to_profile
+    from ._adjust import candidates, map_blocks_to_profile, read_program
 
-    program = _read(program)
+    program = read_program(program)
     why = ""
     try:
         lines = sorted(
@@ -103,7 +103,7 @@ def finish_cut_tools(
         )
     except AnalysisError as exc:
         why = str(exc)
-        lines = sorted({m.line for m in _candidates(program)})
+        lines = sorted({m.line for m in candidates(program)})
     by_key: dict[tuple[int, int], list] = {}
     untooled = []
     for ln in lines:

@@ -13,9 +13,9 @@ from piecs_bayes.feedback._tracking import (
     GRID_LOG_PRIOR,
     HYPER_GRID,
     TrackModel,
-    _params,
     fit_track_model,
     fit_transfer,
+    model_params,
     track,
 )
 
@@ -146,7 +146,7 @@ def test_the_collapsed_filter_is_close_to_the_exact_mixture(y):
     loglik, next_mean, p_step = _exact_mixture(m, u, y)
     err = {}
     for memory in (1, STEP_MEMORY):
-        out = mixture_filter(y[None], (u**2)[None], _params((m,)), np.zeros(y.size, bool),
+        out = mixture_filter(y[None], (u**2)[None], model_params((m,)), np.zeros(y.size, bool),
                              memory=memory)  # fmt: skip
         err[memory] = (abs(out["loglik"][0].sum() - loglik),
                        abs(out["next_m"][0] - next_mean) / UM,

@@ -16,7 +16,7 @@ from piecs_bayes.errors import InputError
 from piecs_bayes.feedback._filter import mixture_filter
 from piecs_bayes.feedback._policies import POLICIES, TUNING_GRIDS, replay, replay_runs
 from piecs_bayes.feedback._replay import schedule
-from piecs_bayes.feedback._tracking import TrackModel, _params, track
+from piecs_bayes.feedback._tracking import TrackModel, model_params, track
 
 UM = 1e-3
 TOL = (-10 * UM, 10 * UM)
@@ -98,7 +98,7 @@ def test_levels_ahead_are_the_closed_form_prediction():
     m = _gauss(drift_decay=phi, drift_sd=0.2 * UM)
     u = np.array([1.0, 1.2, 0.9, 1.1, 1.0]) * UM
     y = np.array([1.0, 2.5, 3.0, 4.2, 4.0]) * UM
-    out = mixture_filter(y[None], (u**2)[None], _params((m,)), np.zeros(5, bool), ahead=4)
+    out = mixture_filter(y[None], (u**2)[None], model_params((m,)), np.zeros(5, bool), ahead=4)
     lev, ys, mean = _dense(m, u, 10)
     for k in range(5):
         for h in range(1, 5):
@@ -116,7 +116,7 @@ def test_the_mixture_with_a_missing_part_keeps_its_weights_and_predicts():
     m = TrackModel(level_sd=0.2 * UM, drift_sd=0.0, scatter_sd=1.0 * UM, step_prob=0.02,
                    outlier_prob=0.05, drift0_sd=0.3 * UM)  # fmt: skip
     y = np.array([0.0, 1.0, np.nan, 2.0, 1.5]) * UM
-    out = mixture_filter(y[None], np.full((1, 5), UM**2), _params((m,)), np.zeros(5, bool),
+    out = mixture_filter(y[None], np.full((1, 5), UM**2), model_params((m,)), np.zeros(5, bool),
                          ahead=2)  # fmt: skip
     assert out["loglik"][0, 2] == 0.0
     assert out["p_filt"][0, 2, 1] < 1e-12

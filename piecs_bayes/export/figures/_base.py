@@ -49,17 +49,17 @@ def param_unit(name: str) -> tuple[float, str]:
     return 1e3, "µm"
 
 
-def _figure(figsize, **kw):
+def new_figure(figsize, **kw):
     from matplotlib.figure import Figure
 
     return Figure(figsize=figsize, layout="constrained", **kw)
 
 
-def _grid(n, ncols):
+def grid_axes(n, ncols):
     return max(1, math.ceil(n / ncols)), min(n, ncols)
 
 
-def _nice(x: float) -> float:
+def nice_step(x: float) -> float:
     """The largest of 1, 2, 5 x 10^k not above `x` (at least 1)."""
     if not math.isfinite(x) or x <= 1:
         return 1.0
@@ -70,14 +70,14 @@ def _nice(x: float) -> float:
     return float(10**k)
 
 
-def _contour_s(profile, grid):
+def contour_s(profile, grid):
     """Arc length (mm) along the nominal contour of each grid point, and feature starts."""
     lengths = np.array([f.length for f in profile.features])
     starts = np.concatenate([[0.0], np.cumsum(lengths)])
     return starts[grid.feature] + grid.t * lengths[grid.feature], starts
 
 
-def _label_features(ax, profile, starts, names=None, *, labels=True):
+def label_features(ax, profile, starts, names=None, *, labels=True):
     """Feature boundaries as dotted lines and the ids (or `names`) above the axes
     (staggered where neighbours are short; none with `labels=False`)."""
     from matplotlib.transforms import blended_transform_factory

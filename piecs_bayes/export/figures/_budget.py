@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ._base import _contour_s, _figure, _label_features, param_unit
+from ._base import contour_s, label_features, new_figure, param_unit
 
 _SOURCE_COLOURS = {
     "repeatability": "#4C72B0",
@@ -37,7 +37,7 @@ def budget_figure(tpu, profile):
     for i, r in enumerate(rows):
         fac, unit = param_unit(r)
         totals.append(f"{r}  (u = {math.sqrt(max(tot[i], 0.0)) * fac:.3g} {unit})")
-    fig = _figure((10.5, 0.23 * n + 5.3))
+    fig = new_figure((10.5, 0.23 * n + 5.3))
     gs = fig.add_gridspec(2, 1, height_ratios=[0.23 * n + 1.0, 3.4])
     ax = fig.add_subplot(gs[0])
     left = np.zeros(n)
@@ -54,7 +54,7 @@ def budget_figure(tpu, profile):
     ax.grid(axis="y", visible=False)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), title="source")
     ax2 = fig.add_subplot(gs[1])
-    s_along, starts = _contour_s(profile, tpu.grid)
+    s_along, starts = contour_s(profile, tpu.grid)
     ob = tpu.offset_budget or {}
     base = np.zeros(len(s_along))
     for s in sources:
@@ -72,7 +72,7 @@ def budget_figure(tpu, profile):
                 label=s if i == 0 else None,
             )
         base = base + v
-    _label_features(ax2, profile, starts)
+    label_features(ax2, profile, starts)
     ax2.set_xlim(starts[0], starts[-1])
     ax2.set_ylim(bottom=0)
     ax2.set_xlabel("position along the nominal contour from its start (mm)")

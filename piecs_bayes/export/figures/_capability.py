@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from ._base import _figure, _grid
+from ._base import grid_axes, new_figure
 
 #: the drawn coordinate's symbol in axis labels
 _SIGN = {"diameter": "Ø", "radius": "R", "length": "Z"}
@@ -25,8 +25,8 @@ def capability_chart_figure(cap):
     value as drawn, as the study holds it (on the diameter for a diameter, on Z for a
     face, along the normal for tapers and arcs; the axis says which)."""
     feats = list(cap.features.values())
-    nrows, ncols = _grid(len(feats), 2)
-    fig = _figure((11.0, 2.3 * nrows + 0.8))
+    nrows, ncols = grid_axes(len(feats), 2)
+    fig = new_figure((11.0, 2.3 * nrows + 0.8))
     axs = fig.subplots(nrows, ncols, squeeze=False)
     for k, ax in enumerate(axs.flat):
         if k >= len(feats):
@@ -73,7 +73,7 @@ def capability_index_figure(cap):
     """Cpk with its confidence interval, Ppk, the Bayesian Cpk with its credible
     interval and the Cpk predicted after compensation, per feature."""
     feats = list(cap.features.values())
-    fig = _figure((10.5, 0.5 * len(feats) + 1.8))
+    fig = new_figure((10.5, 0.5 * len(feats) + 1.8))
     ax = fig.add_subplot()
     y = np.arange(len(feats))
     off = {"cpk": -0.27, "ppk": -0.09, "bayes": 0.09, "after": 0.27}

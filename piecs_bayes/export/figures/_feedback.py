@@ -10,7 +10,7 @@ import io
 
 import numpy as np
 
-from ._base import RC, _figure, _grid
+from ._base import RC, grid_axes, new_figure
 
 #: the drawn coordinate's symbol in axis labels
 _SIGN = {"diameter": "Ø", "radius": "R", "length": "Z"}
@@ -75,8 +75,8 @@ def feedback_track_figure(res, features=None, *, traces: bool = True):
     and steps found (dotted), odd parts (red circles), each policy's realised trace
     (with `traces`) and the tolerance limits (red), as drawn."""
     feats = [res.features[f] for f in (features or res.features)]
-    nrows, ncols = _grid(len(feats), 1 if len(feats) == 1 else 2)
-    fig = _figure((11.0 if ncols == 2 else 8.0, 2.9 * nrows + 1.0))
+    nrows, ncols = grid_axes(len(feats), 1 if len(feats) == 1 else 2)
+    fig = new_figure((11.0 if ncols == 2 else 8.0, 2.9 * nrows + 1.0))
     axs = fig.subplots(nrows, ncols, squeeze=False)
     for j, ax in enumerate(axs.flat):
         if j >= len(feats):
@@ -97,7 +97,7 @@ def feedback_policy_figure(res):
     half-width (anchors at their best setting on this run)."""
     feats = list(res.features.values())
     names = list(res.policies)
-    fig = _figure((10.5, 0.55 * len(feats) + 2.0))
+    fig = new_figure((10.5, 0.55 * len(feats) + 2.0))
     ax = fig.add_subplot()
     y = np.arange(len(feats))
     h = 0.8 / max(1, len(names))

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from ._base import _figure, _grid, param_unit
+from ._base import grid_axes, new_figure, param_unit
 
 
 def trace_figure(posterior, *, max_points: int = 600, walkers_per_ensemble: int = 2):
@@ -18,8 +18,8 @@ def trace_figure(posterior, *, max_points: int = 600, walkers_per_ensemble: int 
     n_e, n_s = ens.shape[0], ens.shape[1]
     idx = np.unique(np.linspace(0, n_s - 1, min(max_points, n_s)).astype(int))
     step = posterior.burn + idx * posterior.thin
-    nrows, ncols = _grid(len(names), 4)
-    fig = _figure((11.0, 1.75 * nrows + 0.9))
+    nrows, ncols = grid_axes(len(names), 4)
+    fig = new_figure((11.0, 1.75 * nrows + 0.9))
     axs = fig.subplots(nrows, ncols, squeeze=False, sharex=True)
     for j, ax in enumerate(axs.flat):
         if j >= len(names):
@@ -59,7 +59,7 @@ def diagnostics_figure(posterior):
     crit = posterior.criteria or {}
     kept = (posterior.nsteps - posterior.burn) / max(posterior.thin, 1) * posterior.thin
     tau_lim = kept / crit.get("tau_factor", 50.0)
-    fig = _figure((11.0, 0.22 * len(names) + 1.9))
+    fig = new_figure((11.0, 0.22 * len(names) + 1.9))
     axs = fig.subplots(1, 3, sharey=True)
     panels = [
         (
@@ -209,7 +209,7 @@ def corner_figure(res, feature: str | None = None, *, max_draws: int = 20000, se
     f = res.study.profile[feature]
     labels, facs, x, lin = _corner_data(post, f, res.fit.fits.get(f.id), max_draws, seed)
     k = len(labels)
-    fig = _figure((2.5 * k + 1.2, 2.5 * k + 0.8))
+    fig = new_figure((2.5 * k + 1.2, 2.5 * k + 0.8))
     axs = fig.subplots(k, k, squeeze=False)
     for i in range(k):
         for j in range(k):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import _figure
+from ._base import new_figure
 
 
 def probe_calibration_figure(cal):
@@ -16,7 +16,7 @@ def probe_calibration_figure(cal):
     u = 1e3 * cal.radius_u(theta)
     span = max(float(np.max(np.abs(dev) + 2 * u)), 0.5)
     base = 2.0 * span  # the radius of r0 on the plot
-    fig = _figure((5.2, 4.6))
+    fig = new_figure((5.2, 4.6))
     ax = fig.add_subplot(projection="polar")
     ax.fill_between(theta, base + dev - 2 * u, base + dev + 2 * u, color="#64B5CD", alpha=0.35,
                     lw=0, label="95 % band (k = 2)")  # fmt: skip

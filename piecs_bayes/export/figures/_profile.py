@@ -7,7 +7,7 @@ import numpy as np
 
 from ...geometry import drawn_limits, drawn_scale
 from ...uncertainty import normal_deviation_at
-from ._base import _contour_s, _figure, _label_features, _nice
+from ._base import contour_s, label_features, new_figure, nice_step
 
 
 def auto_exaggeration(res) -> float:
@@ -29,7 +29,7 @@ def auto_exaggeration(res) -> float:
         big = max(big, float(np.max(np.abs(b.simultaneous_upper))))
     if big <= 0:
         return 1.0
-    return _nice(extent / 6 / big)
+    return nice_step(extent / 6 / big)
 
 
 class _Once:
@@ -104,7 +104,7 @@ def profile_figure(res, exaggeration: float | None = None):
     """The profile as drawn (the vertical axis labelled with diameters, as on the
     drawing), each feature's tolerance zone, the measured points and fitted features,
     and the adjusted tool path with its simultaneous 95 % band, deviations exaggerated."""
-    fig = _figure((10.5, 4.4))
+    fig = new_figure((10.5, 4.4))
     ax = fig.add_subplot()
     prof = res.study.profile
     fac = exaggeration or auto_exaggeration(res)
@@ -225,17 +225,17 @@ def offset_figure(res):
     faces, along the normal for tapers and arcs): the measured part's fitted deviation
     with the tolerance limits and the decision points (± U), and the adjusted tool
     path's change with its pointwise and simultaneous 95 % bands."""
-    fig = _figure((10.5, 6.4))
+    fig = new_figure((10.5, 6.4))
     top, bottom = fig.subplots(2, 1, sharex=True)
     prof = res.study.profile
     lin = res.uncertainty["linearised"]
-    s, starts = _contour_s(prof, lin.grid)
+    s, starts = contour_s(prof, lin.grid)
     k = [drawn_scale(f) for f in prof.features]
     _part_panel(top, res, lin, s, k)
     _path_panel(bottom, res, lin, s, k)
     names = [f"{f.id} ({_SIGN.get(f.tolerance_on, f.tolerance_on)})" for f in prof.features]
     for ax in (top, bottom):
-        _label_features(ax, prof, starts, names, labels=ax is top)
+        label_features(ax, prof, starts, names, labels=ax is top)
         ax.set_xlim(starts[0], starts[-1])
         ax.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=7.5, framealpha=0.9)
     return fig

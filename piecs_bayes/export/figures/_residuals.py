@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ._base import _figure, _grid
+from ._base import grid_axes, new_figure
 
 
 def _along(feature, q):
@@ -26,8 +26,8 @@ def _along(feature, q):
 def residuals_figure(res):
     """Residuals of every fitted feature along it, outliers marked with their file line."""
     fits = list(res.fit)
-    nrows, ncols = _grid(len(fits), 4)
-    fig = _figure((11.0, 2.35 * nrows + 0.7))
+    nrows, ncols = grid_axes(len(fits), 4)
+    fig = new_figure((11.0, 2.35 * nrows + 0.7))
     axs = fig.subplots(nrows, ncols, squeeze=False)
     sigma = res.study.probe.repeatability * 1e3
     for k, ax in enumerate(axs.flat):

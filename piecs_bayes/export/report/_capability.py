@@ -4,7 +4,7 @@ Bayesian Cpk, stability findings and the charts."""
 from __future__ import annotations
 
 from ..figures import capability_chart_figure, capability_index_figure
-from .model import _ci, _f, _Fig, _Para, _Pre, _Table
+from .model import Fig, Para, Pre, Table, interval_text, num
 
 #: the drawn coordinate in a table cell
 _ON = {"diameter": "Ø", "radius": "R", "length": "Z", "normal": "normal"}
@@ -21,13 +21,13 @@ def _index_row(fc) -> list[str]:
         fc.characteristic,
         str(c.n),
         f"{lo * 1e3:+g} … {hi * 1e3:+g}",
-        _f(c.mean, "+.2f"),
-        _f(c.sigma_within, ".2f"),
-        _f(c.sigma_overall, ".2f"),
-        f"{c.cp:.2f} {_ci(c.cp_ci)}",
-        f"{c.cpk:.2f} {_ci(c.cpk_ci)}",
-        f"{c.pp:.2f} {_ci(c.pp_ci)}",
-        f"{c.ppk:.2f} {_ci(c.ppk_ci)}",
+        num(c.mean, "+.2f"),
+        num(c.sigma_within, ".2f"),
+        num(c.sigma_overall, ".2f"),
+        f"{c.cp:.2f} {interval_text(c.cp_ci)}",
+        f"{c.cpk:.2f} {interval_text(c.cpk_ci)}",
+        f"{c.pp:.2f} {interval_text(c.pp_ci)}",
+        f"{c.ppk:.2f} {interval_text(c.ppk_ci)}",
     ]
 
 
@@ -39,19 +39,19 @@ def _after_row(fc) -> list[str]:
         stab += f", step before {fc.step_part}"
     return [
         fc.feature,
-        "–" if b is None else f"{b.cpk:.2f} {_ci(b.cpk_interval)}",
+        "–" if b is None else f"{b.cpk:.2f} {interval_text(b.cpk_interval)}",
         "–" if b is None else f"{b.p_cpk_above:.3f}",
         stab,
-        f"{p.cpk:.2f} {_ci(p.cpk_ci)}",
-        f"{pw.cpk:.2f} {_ci(pw.cpk_ci)}",
+        f"{p.cpk:.2f} {interval_text(p.cpk_ci)}",
+        f"{pw.cpk:.2f} {interval_text(pw.cpk_ci)}",
     ]
 
 
-def _capability_section(res) -> list:
+def capability_section(res) -> list:
     cap = res.capability
     if cap is None:
         why = res.unavailable.get("capability", "switched off")
-        return [_Para(f"No capability study: {why}", "note")]
+        return [Para(f"No capability study: {why}", "note")]
     rows = [_index_row(fc) for fc in cap.features.values()]
     rows2 = [_after_row(fc) for fc in cap.features.values()]
     lvl = f"{cap.confidence:.0%}"
@@ -65,13 +65,13 @@ def _capability_section(res) -> list:
         1.33,
     )
     blocks = [
-        _Para(
+        Para(
             f"{len(cap.parts)} parts ({cap.parts[0]} … {cap.parts[-1]}), fits {cap.method}; "
             "values: the deviation at each feature's characteristic point, as drawn (on the "
             "diameter Ø for diameters, on Z for faces, along the normal for tapers and arcs), "
             "with the tolerance on the same coordinate."
         ),
-        _Table(
+        Table(
             [
                 "feature",
                 "on",
@@ -93,7 +93,7 @@ def _capability_section(res) -> list:
             "parts), Pp, Ppk the overall σ (drift and steps included). CI: confidence interval "
             "(chi-square and Bissell).",
         ),
-        _Table(
+        Table(
             [
                 "feature",
                 "Bayes Cpk [CrI]",
@@ -111,15 +111,15 @@ def _capability_section(res) -> list:
         ),
     ]
     if findings:
-        blocks.append(_Pre(findings, caption="Stability findings and notes"))
+        blocks.append(Pre(findings, caption="Stability findings and notes"))
     blocks += [
-        _Fig(
+        Fig(
             "capability_chart",
             lambda: capability_chart_figure(cap),
             "Individuals charts over the run (production order) with control limits, "
             "tolerance and the most likely step.",
         ),
-        _Fig(
+        Fig(
             "capability_indices",
             lambda: capability_index_figure(cap),
             "Capability indices with their intervals, and the Cpk predicted after compensation.",

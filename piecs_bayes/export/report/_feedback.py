@@ -13,14 +13,14 @@ from ...io import write_bytes_atomic, write_text_atomic
 from ...jobs import feedback_policy_label
 from ..figures import RC, feedback_figures, feedback_policy_figure, feedback_track_figure
 from ..tables import feedback_csvs, feedback_json
-from ._html import _CSS, _render_html_block
-from .model import _f, _Fig, _Para, _Pre, _Table
+from ._html import CSS, render_html_block
+from .model import Fig, Para, Pre, Table, num
 
 #: the drawn coordinate in a table cell
 _ON = {"diameter": "Ø", "radius": "R", "length": "Z", "normal": "normal"}
 
 
-def _policy_table(res) -> _Table:
+def _policy_table(res) -> Table:
     names = list(res.policies)
     rows, cells = [], []
     for f in res.features.values():
@@ -28,16 +28,16 @@ def _policy_table(res) -> _Table:
         vals = [f.policies[n].rmsd_mm * k if n in f.policies else math.nan for n in names]
         best = min(v for v in vals if math.isfinite(v))
         rows.append([f.feature, _ON.get(f.coordinate, f.coordinate)]
-                    + [_f(v, ".2f") for v in vals])  # fmt: skip
+                    + [num(v, ".2f") for v in vals])  # fmt: skip
         cells.append(["", ""] + ["ok" if v == best else "" for v in vals])
     over = [res.overall(n) for n in names]
-    rows.append(["all (δ)", "normal"] + [_f(o["rmsd_mm"], ".2f") for o in over])
+    rows.append(["all (δ)", "normal"] + [num(o["rmsd_mm"], ".2f") for o in over])
     cells.append([""] * (2 + len(names)))
     rows.append(["out of tolerance", ""] + [str(o["out_of_tolerance"]) for o in over])
     cells.append([""] * (2 + len(names)))
     rows.append(["adjustments", ""] + [str(o["adjustments"]) for o in over])
     cells.append([""] * (2 + len(names)))
-    return _Table(
+    return Table(
         ["feature", "on"] + [f"{feedback_policy_label(n)} (µm)" for n in names],
         rows,
         cells=cells,
@@ -61,29 +61,29 @@ def _settings_cell(settings) -> str:
     return " ".join(out) or "–"
 
 
-def _settings_table(res) -> _Table:
+def _settings_table(res) -> Table:
     names = [n for n in res.policies if n not in ("none", "full", "bayes")]
     rows = [[f.feature] + [_settings_cell(f.policies[n].settings) if n in f.policies else "–"
                            for n in names] for f in res.features.values()]  # fmt: skip
-    return _Table(["feature"] + [feedback_policy_label(n) for n in names], rows,
+    return Table(["feature"] + [feedback_policy_label(n) for n in names], rows,
                   caption="The anchors' settings per feature ((a): the machine's one "
                   "setting; (b): tuned on this run; fixed_gain: gain, null "
                   "band and upper limit as fractions of the tolerance half-width; "
                   "mean_value: window K; ewma: λ; dewma: λ1, λ2).")  # fmt: skip
 
 
-def _next_table(res) -> _Table:
+def _next_table(res) -> Table:
     rows = []
     for r, f in zip(res.next_part_rows(), res.features.values(), strict=True):
         k = abs(f.scale)
         rows.append([
             r["feature"], _ON.get(r["coordinate"], r["coordinate"]),
-            _f(r["correction_drawn_mm"], "+.2f"), _f(r["u_drawn_mm"], ".2f"),
-            _f(r["u_with_systematic_mm"] * k, ".2f"), _f(r["level_mm"] * f.scale, "+.2f"),
+            num(r["correction_drawn_mm"], "+.2f"), num(r["u_drawn_mm"], ".2f"),
+            num(r["u_with_systematic_mm"] * k, ".2f"), num(r["level_mm"] * f.scale, "+.2f"),
             r["verdict"],
             "–" if f.transfer is None else f"{f.transfer[0]:.3f} ± {f.transfer[1]:.3f}",
         ])  # fmt: skip
-    return _Table(
+    return Table(
         ["feature", "on", "correction (µm)", "u (µm)", "u with systematic (µm)",
          "predicted level (µm)", "verdict", "transfer β"],
         rows,
@@ -109,7 +109,7 @@ def feedback_blocks(res, png: dict | None = None) -> list:
     """The report's blocks, in order."""
     cov = res.coverage()
     blocks = [
-        _Para(
+        Para(
             f"{len(res.parts)} parts ({res.parts[0]} … {res.parts[-1]}) in production "
             f"order, fits {res.method}, characteristic at {res.characteristic}; policies "
             f"replayed on the {res.replayed_on} deviations. Declared tool changes: "
@@ -118,21 +118,21 @@ def feedback_blocks(res, png: dict | None = None) -> list:
         _policy_table(res),
         _settings_table(res),
         _next_table(res),
-        _Para(
+        Para(
             f"95 % one-step-ahead predictive coverage: {cov['overall']:.1%} of {cov['n']} "
             "parts (each part's interval from the parts before it only; "
             + ", ".join(f"{k} {v:.0%}" for k, v in cov["features"].items())
             + ")."
         ),
-        _Pre(_steps_lines(res), caption="Steps and odd parts"),
+        Pre(_steps_lines(res), caption="Steps and odd parts"),
     ]
     fin = res.finish_rows()
     if fin:
-        blocks.append(_Table(
+        blocks.append(Table(
             ["feature", "finished parts", "β", "u(β)", "residual sd (µm)",
              "coverage, one step", "coverage, from semifinish"],
             [[r["feature"], str(r["n_finished"]), f"{r['transfer']:.3f}",
-              f"{r['u_transfer']:.3f}", _f(r["residual_sd_mm"], ".2f"),
+              f"{r['u_transfer']:.3f}", num(r["residual_sd_mm"], ".2f"),
               f"{r['coverage_one_step']:.0%}", f"{r['coverage_from_semifinish']:.0%}"]
              for r in fin],
             caption="Post-process loop: the transfer coefficient β (finish = β × semifinish) "
@@ -141,12 +141,12 @@ def feedback_blocks(res, png: dict | None = None) -> list:
             "measurement.",
         ))  # fmt: skip
     if res.notes:
-        blocks.append(_Pre(list(res.notes), caption="Notes"))
+        blocks.append(Pre(list(res.notes), caption="Notes"))
     blocks += [
-        _Fig("feedback_tracks", lambda: feedback_track_figure(res),
+        Fig("feedback_tracks", lambda: feedback_track_figure(res),
              "Deviation per part as drawn, with the 95 % one-step-ahead predictive band, "
              "steps, odd parts, each policy's realised deviation and the tolerance."),
-        _Fig("feedback_policies", lambda: feedback_policy_figure(res),
+        Fig("feedback_policies", lambda: feedback_policy_figure(res),
              "RMS realised deviation per policy and feature, relative to the tolerance."),
     ]  # fmt: skip
     return blocks
@@ -160,12 +160,12 @@ def feedback_report_html(res, *, png: dict | None = None) -> str:
     e = html.escape
     title = f"piecs_bayes feedback: {res.study}"
     with rc_context(RC):
-        body = [_render_html_block(b, png or {}) for b in feedback_blocks(res)]
+        body = [render_html_block(b, png or {}) for b in feedback_blocks(res)]
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{e(title)}</title><style>{_CSS}</style></head><body>",
+        f"<title>{e(title)}</title><style>{CSS}</style></head><body>",
         f"<header><h1>{e(title)}</h1><p>lengths in mm, deviations in µm (as drawn where "
         "marked Ø or Z)</p></header>",
         '<section id="feedback"><h2>Feedback over the run</h2>',

@@ -25,9 +25,9 @@ draws both at once.
 from __future__ import annotations
 
 from ..figures import RC
-from ._html import _html, _png
-from ._pdf import _pdf, _pdf_pages
-from ._sections import _sections
+from ._html import html_report_text, png_bytes
+from ._pdf import pdf_pages, pdf_report_bytes
+from ._sections import report_sections
 
 
 def report_files(res) -> tuple[str, bytes]:
@@ -36,11 +36,11 @@ def report_files(res) -> tuple[str, bytes]:
 
     png: dict[str, bytes] = {}
     with rc_context(RC):
-        sections = _sections(res)
+        sections = report_sections(res)
 
         def keep(name, fig):
-            png[name] = _png(fig)
+            png[name] = png_bytes(fig)
 
-        pdf = _pdf(_pdf_pages(res, sections, on_figure=keep), res)
-        text = _html(res, sections, png)
+        pdf = pdf_report_bytes(pdf_pages(res, sections, on_figure=keep), res)
+        text = html_report_text(res, sections, png)
     return text, pdf

@@ -19,10 +19,10 @@ from ..figures import (
     residuals_figure,
     trace_figure,
 )
-from .model import _f, _Fig, _Para, _Table, micro
+from .model import Fig, Para, Table, micro, num
 
 
-def _vertex_table(res) -> _Table:
+def _vertex_table(res) -> Table:
     lin = res.uncertainty["linearised"]
     mc = res.uncertainty.get("monte_carlo")
     nom = res.study.profile.vertices
@@ -33,19 +33,19 @@ def _vertex_table(res) -> _Table:
             str(k),
             f"{2 * n[0]:.3f}",
             f"{n[1]:.3f}",
-            _f(v[0] - n[0], "+.1f", 2e3),
-            _f(v[1] - n[1], "+.1f"),
-            _f(sd[0], ".1f", 2e3),
-            _f(sd[1], ".1f"),
+            num(v[0] - n[0], "+.1f", 2e3),
+            num(v[1] - n[1], "+.1f"),
+            num(sd[0], ".1f", 2e3),
+            num(sd[1], ".1f"),
         ]
         if mc is not None:
-            row += [_f(mc.vertex_sd[k][0], ".1f", 2e3), _f(mc.vertex_sd[k][1], ".1f")]
+            row += [num(mc.vertex_sd[k][0], ".1f", 2e3), num(mc.vertex_sd[k][1], ".1f")]
         rows.append(row)
     headers = ["vertex", "nominal Ø (mm)", "nominal Z (mm)", "ΔØ (µm)", "ΔZ (µm)"]
     headers += ["u(Ø) linearised (µm)", "u(Z) linearised (µm)"]
     if mc is not None:
         headers += ["u(Ø) Monte Carlo (µm)", "u(Z) Monte Carlo (µm)"]
-    return _Table(
+    return Table(
         headers,
         rows,
         caption="Adjusted tool-path vertices (the corners of the finish cut): move from "
@@ -55,11 +55,11 @@ def _vertex_table(res) -> _Table:
     )
 
 
-def _profile_section(res) -> list:
+def profile_section(res) -> list:
     blocks: list = []
     fac = auto_exaggeration(res)
     blocks.append(
-        _Fig(
+        Fig(
             "profile",
             lambda: profile_figure(res, exaggeration=fac),
             f"The part as drawn (black; vertical axis labelled with diameters) with each "
@@ -70,7 +70,7 @@ def _profile_section(res) -> list:
     )
     if res.uncertainty is not None:
         blocks.append(
-            _Fig(
+            Fig(
                 "offset",
                 lambda: offset_figure(res),
                 "Along the nominal contour, every value as drawn (Ø for diameters, Z for faces, "
@@ -85,7 +85,7 @@ def _profile_section(res) -> list:
         blocks.append(_vertex_table(res))
     else:
         why = res.unavailable.get("uncertainty", "switched off")
-        blocks.append(_Para(f"Tool-path uncertainty not available: {why}", "warn"))
+        blocks.append(Para(f"Tool-path uncertainty not available: {why}", "warn"))
     return blocks
 
 
@@ -97,7 +97,7 @@ def _sigma_cell(fit) -> str:
     return f"{s.value * 1e3:.2f} ({s.source}, {dof})"
 
 
-def _residuals_section(res) -> list:
+def residuals_section(res) -> list:
     rows = []
     for f in res.fit:
         rows.append(
@@ -106,21 +106,21 @@ def _residuals_section(res) -> list:
                 str(f.n),
                 str(len(f.outliers)),
                 ", ".join(str(int(f.lines[i])) for i in f.outliers) or "–",
-                _f(f.residual_sd, ".2f"),
+                num(f.residual_sd, ".2f"),
                 str(f.residual_dof),
                 _sigma_cell(res.fit),
                 f.result.status.name if hasattr(f.result, "status") else "",
             ]
         )
     return [
-        _Fig(
+        Fig(
             "residuals",
             lambda: residuals_figure(res),
             "Residuals (distance of each probe point from the fitted feature, µm) along each "
             "feature; shaded: ±2σ of the probe. Red ×: an outlier (left out of the fit) with "
             "its probe-file line; red ▲ or ▼: an outlier beyond the scale, its value printed.",
         ),
-        _Table(
+        Table(
             [
                 "feature",
                 "points",
@@ -133,7 +133,7 @@ def _residuals_section(res) -> list:
             ],
             rows,
         ),
-        _Para(
+        Para(
             "Every standard uncertainty uses the probe sigma in the 'sigma used' column, "
             "not a feature's own residual sd (a few points say little about sigma): "
             + (micro(res.fit.sigma.describe()) if res.fit.sigma is not None else "not recorded")
@@ -145,7 +145,7 @@ def _residuals_section(res) -> list:
     ]
 
 
-def _posterior_table(post) -> _Table:
+def _posterior_table(post) -> Table:
     """Posterior mean, sd, 95 % interval and convergence diagnostics per parameter;
     rows failing a convergence criterion get the class "bad"."""
     lo, hi = post.interval(0.95)
@@ -163,17 +163,17 @@ def _posterior_table(post) -> _Table:
             [
                 name,
                 unit,
-                _f(post.mean[j], f"+.{nd}f", fac),
-                _f(post.sd[j], f".{nd}f", fac),
-                _f(lo[j], f"+.{nd}f", fac),
-                _f(hi[j], f"+.{nd}f", fac),
+                num(post.mean[j], f"+.{nd}f", fac),
+                num(post.sd[j], f".{nd}f", fac),
+                num(lo[j], f"+.{nd}f", fac),
+                num(hi[j], f"+.{nd}f", fac),
                 f"{post.tau[j]:.0f}" + ("" if post.tau_reliable[j] else "*"),
                 f"{post.ess[j]:.0f}",
                 f"{post.rhat[j]:.4f}",
             ]
         )
         classes.append("" if ok else "bad")
-    return _Table(
+    return Table(
         ["parameter", "unit", "mean", "sd", "2.5 %", "97.5 %", "τ (steps)", "ESS", "R-hat"],
         rows,
         caption="Posterior summary: mean, standard deviation and 95 % interval of each "
@@ -186,10 +186,10 @@ def _posterior_table(post) -> _Table:
     )
 
 
-def _posterior_section(res) -> list:
+def posterior_section(res) -> list:
     if res.bayes is None:
         why = res.unavailable.get("bayes", "the Bayesian fit was switched off (--no-bayes)")
-        return [_Para(f"No Bayesian fit: {why}", "warn")]
+        return [Para(f"No Bayesian fit: {why}", "warn")]
     post = res.bayes.posterior
     table = _posterior_table(post)
     state = (
@@ -200,8 +200,8 @@ def _posterior_section(res) -> list:
     )
     feat = corner_feature(res)
     blocks = [
-        _Para(state, "p" if post.converged else "warn"),
-        _Para(
+        Para(state, "p" if post.converged else "warn"),
+        Para(
             f"Sampler: {post.sampler}, {post.n_ensembles} independent ensembles of "
             f"{post.nwalkers} walkers, "
             f"{post.nsteps} steps each, burn-in {post.burn}, thin {post.thin}; "
@@ -210,14 +210,14 @@ def _posterior_section(res) -> list:
             f"Likelihood: {res.bayes.likelihood}."
         ),
         table,
-        _Fig(
+        Fig(
             "traces",
             lambda: trace_figure(post),
             "Traces after burn-in: mixing and stationarity at a glance; the ensembles should "
             "overlap.",
             full=True,
         ),
-        _Fig(
+        Fig(
             "diagnostics",
             lambda: diagnostics_figure(post),
             "Autocorrelation time, effective sample size and split R-hat against the limits "
@@ -226,7 +226,7 @@ def _posterior_section(res) -> list:
     ]
     if feat is not None:
         blocks.append(
-            _Fig(
+            Fig(
                 "corner",
                 lambda: corner_figure(res, feat),
                 f"Corner plot of {feat!r}: the posterior against the robust fit's linearised "
@@ -237,10 +237,10 @@ def _posterior_section(res) -> list:
     return blocks
 
 
-def _budget_section(res) -> list:
+def budget_section(res) -> list:
     if res.uncertainty is None:
         why = res.unavailable.get("uncertainty", "switched off")
-        return [_Para(f"No uncertainty budget: {why}", "warn")]
+        return [Para(f"No uncertainty budget: {why}", "warn")]
     lin = res.uncertainty["linearised"]
     budget = lin.deviation_budget or {}
     sources = [s for s in budget if s != "total"]
@@ -258,7 +258,7 @@ def _budget_section(res) -> list:
             rows.append([f"{f.id}.{p}", f"{math.sqrt(max(tot[i], 0)) * fac:.3g} {unit}", *share])
             i += 1
     return [
-        _Fig(
+        Fig(
             "budget",
             lambda: budget_figure(lin, res.study.profile),
             "Uncertainty budget (linearised, GUM): which declared source contributes how much "
@@ -268,7 +268,7 @@ def _budget_section(res) -> list:
             "z_offset (work offset in Z), rotation (of the probe frame).",
             full=True,
         ),
-        _Table(
+        Table(
             ["parameter", "u", *[f"{s} (%)" for s in sources]],
             rows,
             caption="Variance share of each source (%) per feature parameter.",

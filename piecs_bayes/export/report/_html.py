@@ -7,11 +7,11 @@ import html
 import io
 
 from ..figures import RC
-from ._sections import _sections
-from ._summary import _summary_table
-from .model import CLASS_COLOURS, _Bullets, _Fig, _is_num, _PageBreak, _Para, _Pre, _Table, _Tables
+from ._sections import report_sections
+from ._summary import summary_table
+from .model import CLASS_COLOURS, Bullets, Fig, PageBreak, Para, Pre, Table, Tables, is_num
 
-_CSS = """
+CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;
 max-width:1180px;margin:0 auto;padding:1em 1.5em;color:#222;line-height:1.4}
 h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:2px solid #ddd;padding-bottom:.2em;
@@ -34,22 +34,22 @@ p.sign{margin-top:2.5em}div.tables{display:flex;flex-wrap:wrap;gap:2em;align-ite
 """ + "".join(f"tr.{c} td,td.{c},h3.{c} span{{background:{v}}}" for c, v in CLASS_COLOURS.items())
 
 
-def _render_html_block(b, png: dict | None = None) -> str:
+def render_html_block(b, png: dict | None = None) -> str:
     e = html.escape
-    if isinstance(b, _Para):
+    if isinstance(b, Para):
         cls = "" if b.kind == "p" else f' class="{b.kind}"'
         return f"<p{cls}>{e(b.text)}</p>"
-    if isinstance(b, _Table):
+    if isinstance(b, Table):
         return _table_html(b)
-    if isinstance(b, _Bullets):
+    if isinstance(b, Bullets):
         items = "".join(f"<li>{e(r)}</li>" for r in b.items)
         cls = f' class="verdict {b.kind}"' if b.kind else ""
         return f'<h3{cls}><span>{e(b.title)}</span></h3><ul class="reasons">{items}</ul>'
-    if isinstance(b, _PageBreak):
+    if isinstance(b, PageBreak):
         return ""
-    if isinstance(b, _Tables):
+    if isinstance(b, Tables):
         return '<div class="tables">' + "".join(_table_html(t) for t in b.tables) + "</div>"
-    if isinstance(b, _Pre):
+    if isinstance(b, Pre):
         out = []
         for line in b.lines:
             t = e(line)
@@ -62,10 +62,10 @@ def _render_html_block(b, png: dict | None = None) -> str:
             out.append(t)
         cap = f"<p><strong>{e(b.caption)}</strong></p>" if b.caption else ""
         return f"{cap}<pre>{chr(10).join(out)}</pre>"
-    if isinstance(b, _Fig):
+    if isinstance(b, Fig):
         data = (png or {}).get(b.name)
         if data is None:
-            data = _png(b.make())
+            data = png_bytes(b.make())
         src = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
         return (
             f'<figure id="fig-{b.name}"><img alt="{e(b.caption)}" src="{src}">'
@@ -74,7 +74,7 @@ def _render_html_block(b, png: dict | None = None) -> str:
     raise TypeError(f"unknown report block {b!r}")
 
 
-def _table_html(b: _Table) -> str:
+def _table_html(b: Table) -> str:
     e = html.escape
     head = "".join(f"<th>{e(h)}</th>" for h in b.headers)
     body = []
@@ -83,7 +83,7 @@ def _table_html(b: _Table) -> str:
         marks = b.cells[k] if b.cells is not None and k < len(b.cells) else [""] * len(row)
         cells = []
         for c, m in zip(row, marks, strict=False):
-            names = " ".join(x for x in ("num" if _is_num(c) else "", m) if x)
+            names = " ".join(x for x in ("num" if is_num(c) else "", m) if x)
             cells.append(f'<td class="{names}">{e(c)}</td>' if names else f"<td>{e(c)}</td>")
         body.append(
             f'<tr class="{cls}">{"".join(cells)}</tr>' if cls else f"<tr>{''.join(cells)}</tr>"
@@ -95,13 +95,13 @@ def _table_html(b: _Table) -> str:
     )
 
 
-def _png(fig) -> bytes:
+def png_bytes(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()
 
 
-def _html(res, sections, png) -> str:
+def html_report_text(res, sections, png) -> str:
     e = html.escape
     title = f"piecs_bayes report: {res.study.name}"
     nav = "".join(f'<li><a href="#{sid}">{e(t)}</a></li>' for sid, t, _ in sections)
@@ -109,7 +109,7 @@ def _html(res, sections, png) -> str:
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{e(title)}</title><style>{_CSS}</style></head><body>",
+        f"<title>{e(title)}</title><style>{CSS}</style></head><body>",
         f"<header><h1>{e(title)}</h1>",
         f"<p>Part {e(str(res.part or '–'))} · {e(res.created)} · piecs_bayes "
         f"{e(res.versions.get('piecs_bayes', '?'))} · lengths in mm, deviations in µm, X of "
@@ -118,7 +118,7 @@ def _html(res, sections, png) -> str:
     ]
     for k, (sid, t, blocks) in enumerate(sections, start=1):
         parts.append(f'<section id="{sid}"><h2>{k}. {e(t)}</h2>')
-        parts += [_render_html_block(b, png) for b in blocks]
+        parts += [render_html_block(b, png) for b in blocks]
         parts.append("</section>")
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
@@ -129,9 +129,9 @@ def report_html(res) -> str:
     from matplotlib import rc_context
 
     with rc_context(RC):
-        return _html(res, _sections(res), {})
+        return html_report_text(res, report_sections(res), {})
 
 
 def summary_html(res) -> str:
     """The summary table alone, as an HTML fragment (notebooks)."""
-    return _render_html_block(_summary_table(res))
+    return render_html_block(summary_table(res))

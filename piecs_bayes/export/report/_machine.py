@@ -5,15 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import _f, _Para, _Pre, _Table, micro
+from .model import Para, Pre, Table, micro, num
 
 
-def _program_section(res) -> list:
+def program_section(res) -> list:
     adj = res.program
     if adj is None:
         why = res.unavailable.get("program", "switched off")
         return [
-            _Para(
+            Para(
                 f"No adjusted part program: {why}",
                 "warn" if "program" in res.unavailable else "note",
             )
@@ -25,7 +25,7 @@ def _program_section(res) -> list:
             c.feature or "(approach)",
             c.old.strip(),
             c.new.strip(),
-            _f(c.shift_mm, ".1f"),
+            num(c.shift_mm, ".1f"),
         ]
         for c in adj.changes
     ]
@@ -35,19 +35,19 @@ def _program_section(res) -> list:
         else "not checked with the nose radius (give one: [offsets] current_r or --nose-radius)"
     )
     return [
-        _Para(
+        Para(
             f"{study.program.name}: {len(adj.changes)} blocks rewritten, largest end-point move "
             f"{adj.max_shift_mm * 1e3:.1f} µm (limit {study.compensation.max_correction * 1e3:g} "
             f"µm); every other line is byte-identical; {nose}. Mapping of blocks to features: "
             + ", ".join(f"{k} {list(v)}" for k, v in adj.mapping.features.items())
             + "."
         ),
-        _Table(
+        Table(
             ["line", "feature", "original", "adjusted", "end moved (µm)"],
             rows,
             caption="Rewritten blocks.",
         ),
-        _Pre(
+        Pre(
             adj.diff.splitlines(),
             caption="Unified diff against the original program",
             diff=True,
@@ -56,12 +56,12 @@ def _program_section(res) -> list:
     ]
 
 
-def _errspec_section(res) -> list:
+def errspec_section(res) -> list:
     blocks: list = []
     spec = res.errspec
     if spec is None:
         why = res.unavailable.get("errspec", "switched off")
-        blocks.append(_Para(f"No error specification: {why}", "warn"))
+        blocks.append(Para(f"No error specification: {why}", "warn"))
     else:
         rows = []
         for t in spec.tables:
@@ -74,18 +74,18 @@ def _errspec_section(res) -> list:
                     f"{t.axis.upper()} vs {t.position_axis.upper()}",
                     str(len(pos)),
                     f"{pos.min():.3f} … {pos.max():.3f}",
-                    _f(float(np.max(np.abs(corr))), ".2f"),
-                    _f(float(np.max(u)), ".2f"),
+                    num(float(np.max(np.abs(corr))), ".2f"),
+                    num(float(np.max(u)), ".2f"),
                     "yes" if t.axis == t.position_axis else "no (depends on another axis)",
                 ]
             )
         blocks += [
-            _Para(
+            Para(
                 f"{spec.description}. Corrections are −gain × error along the corrected machine "
                 "axis, machine positions, X as radius (native format: compensation.errspec.json "
                 "and one CSV per table)."
             ),
-            _Table(
+            Table(
                 [
                     "table",
                     "corrects",
@@ -100,7 +100,7 @@ def _errspec_section(res) -> list:
         ]
     upd = res.offsets
     if upd is None:
-        blocks.append(_Para("No tool-offset update.", "note"))
+        blocks.append(Para("No tool-offset update.", "note"))
     else:
         rows = []
         for a in upd.axes:
@@ -110,20 +110,20 @@ def _errspec_section(res) -> list:
             rows.append(
                 [
                     a.axis.upper(),
-                    f"{_f(a.error)} ± {_f(a.u_error, '.2f')}",
-                    f"{_f(a.correction)} ± {_f(a.u_correction, '.2f')}",
+                    f"{num(a.error)} ± {num(a.u_error, '.2f')}",
+                    f"{num(a.correction)} ± {num(a.u_correction, '.2f')}",
                     a.status,
                     a.reason,
                 ]
             )
         state = "BLOCKED" if upd.blocked else ("update" if upd.any_update else "no change")
         blocks += [
-            _Para(
+            Para(
                 f"Tool-offset (wear) update for tool {upd.tool}: {state}; X as {upd.x_mode} (µm)."
             ),
-            _Table(["axis", "error ± u (µm)", "correction ± u (µm)", "status", "why"], rows),
+            Table(["axis", "error ± u (µm)", "correction ± u (µm)", "status", "why"], rows),
         ]
         notes = [micro(n) for n in (*upd.reasons, *res.offset_notes)]
         if notes:
-            blocks.append(_Pre([f"- {n}" for n in notes], caption="Notes"))
+            blocks.append(Pre([f"- {n}" for n in notes], caption="Notes"))
     return blocks

@@ -10,8 +10,8 @@ import itertools
 from ..figures import RC
 from ._pdf_blocks import FigurePiece, keep_height, place_block, place_heading
 from ._pdf_flow import BODY, TITLE, Flow, render_pages, text_op
-from ._sections import _sections
-from .model import _Fig, _PageBreak
+from ._sections import report_sections
+from .model import Fig, PageBreak
 
 
 def _place_section(flow: Flow, head: str, blocks, on_figure, numbers) -> None:
@@ -19,20 +19,20 @@ def _place_section(flow: Flow, head: str, blocks, on_figure, numbers) -> None:
     (or comes after one that waits) floats to the top of the next page."""
     figures = {}
     for i, b in enumerate(blocks):
-        if isinstance(b, _Fig):
+        if isinstance(b, Fig):
             fig = b.make()
             if on_figure is not None:
                 on_figure(b.name, fig)
             n = next(numbers)
             caption = f"Figure {n} (section {head}). {b.caption}"
             figures[i] = FigurePiece(fig, caption, full=b.full, shrink=b.shrink)
-    text = [i for i, b in enumerate(blocks) if i not in figures and not isinstance(b, _PageBreak)]
+    text = [i for i, b in enumerate(blocks) if i not in figures and not isinstance(b, PageBreak)]
     keep = keep_height(blocks[text[0]]) if text else 1.0
     if figures and min(figures) < (text[0] if text else len(blocks)):
         keep = min(keep, figures[min(figures)].smallest)  # a figure first: it may float
     place_heading(flow, head, keep)
     for i, b in enumerate(blocks):
-        if isinstance(b, _PageBreak):
+        if isinstance(b, PageBreak):
             flow.new_page()
         elif i in figures:
             if flow.floats or not figures[i].fits(flow):
@@ -61,14 +61,14 @@ def _layout(res, sections, on_figure=None) -> Flow:
     return flow
 
 
-def _pdf_pages(res, sections, on_figure=None):
+def pdf_pages(res, sections, on_figure=None):
     """Yield the PDF's pages as Figures (and call `on_figure(name, fig)` for figures)."""
     flow = _layout(res, sections, on_figure)
     footer = f"piecs_bayes report · {res.study.name} · part {res.part or '–'} · {res.created}"
     yield from render_pages(flow.pages, footer)
 
 
-def _pdf(pages, res) -> bytes:
+def pdf_report_bytes(pages, res) -> bytes:
     from matplotlib.backends.backend_pdf import PdfPages
 
     buf = io.BytesIO()
@@ -89,4 +89,4 @@ def report_pdf(res) -> bytes:
     from matplotlib import rc_context
 
     with rc_context(RC):
-        return _pdf(_pdf_pages(res, _sections(res)), res)
+        return pdf_report_bytes(pdf_pages(res, report_sections(res)), res)

@@ -24,7 +24,7 @@ from ._pdf_flow import (
     text_width,
     wrap,
 )
-from .model import CLASS_COLOURS, _Bullets, _is_num, _Para, _Pre, _Table, _Tables
+from .model import CLASS_COLOURS, Bullets, Para, Pre, Table, Tables, is_num
 
 _PARA_STYLE = {
     "p": {},
@@ -70,7 +70,7 @@ def _place_lines(flow: Flow, lines, size, *, x=LEFT, box=None, **kw) -> None:
         i += len(chunk)
 
 
-def _place_para(flow: Flow, p: _Para) -> None:
+def _place_para(flow: Flow, p: Para) -> None:
     size = BODY + (0.6 if p.kind in ("pass", "fail") else 0.0)
     bold = p.kind in ("pass", "fail")
     if p.kind == "sign":
@@ -80,7 +80,7 @@ def _place_para(flow: Flow, p: _Para) -> None:
     flow.skip(_GAP + (0.04 if p.kind in _PARA_BOX else 0.0))
 
 
-def _place_bullets(flow: Flow, b: _Bullets) -> None:
+def _place_bullets(flow: Flow, b: Bullets) -> None:
     h, draw = text_op([b.title], BODY, weight="bold")
     colour = CLASS_COLOURS.get(b.kind)
     flow.ensure(h + 2 * _line_h(BODY))
@@ -98,9 +98,9 @@ def _place_bullets(flow: Flow, b: _Bullets) -> None:
     flow.skip(_GAP)
 
 
-def _place_pre(flow: Flow, p: _Pre) -> None:
+def _place_pre(flow: Flow, p: Pre) -> None:
     if not p.pdf:
-        _place_para(flow, _Para(f"{p.caption or 'This text'}: in the HTML report.", "note"))
+        _place_para(flow, Para(f"{p.caption or 'This text'}: in the HTML report.", "note"))
         return
     if p.caption:
         cap = wrap(p.caption + ":", WIDTH, BODY, bold=True)
@@ -147,7 +147,7 @@ def _widths(headers, rows, size: float, room: float) -> list[float]:
 class _TableLayout:
     """A table's columns, header and rows as pieces `(height, draw)` at `x0`."""
 
-    def __init__(self, t: _Table, x0: float = LEFT, room: float = WIDTH):
+    def __init__(self, t: Table, x0: float = LEFT, room: float = WIDTH):
         self.size = CELL + (1.3 if t.emphasis else 0.0)
         self.x0 = x0
         n = len(t.headers)
@@ -160,7 +160,7 @@ class _TableLayout:
             row_cls = t.classes[k] if k < len(t.classes) else ""
             cls = t.cells[k] if t.cells is not None and k < len(t.cells) else [""] * n
             colours = [CLASS_COLOURS.get(c or row_cls, "") for c in cls]
-            self.rows.append(self._row(row, colours, align=[_is_num(c) for c in row]))
+            self.rows.append(self._row(row, colours, align=[is_num(c) for c in row]))
         self.caption = (
             wrap(t.caption, self.width if x0 > LEFT else WIDTH, SMALL) if t.caption else []
         )
@@ -196,7 +196,7 @@ class _TableLayout:
         return text_op(self.caption, SMALL, x=self.x0, color="0.3", style="italic")
 
 
-def _place_table(flow: Flow, t: _Table) -> None:
+def _place_table(flow: Flow, t: Table) -> None:
     if t.title:
         _place_lines(flow, wrap(t.title, WIDTH, BODY, bold=True), BODY, weight="bold")
     lay = _TableLayout(t)
@@ -220,7 +220,7 @@ def _place_table(flow: Flow, t: _Table) -> None:
     flow.skip(_GAP + 0.04)
 
 
-def _place_tables(flow: Flow, tables: list[_Table]) -> None:
+def _place_tables(flow: Flow, tables: list[Table]) -> None:
     """Small tables side by side (one after the other when they do not fit)."""
     gap = 0.3
     lays, x = [], LEFT
@@ -307,7 +307,7 @@ class FigurePiece:
 
 def keep_height(b) -> float:
     """The inches a heading keeps with block `b` (a short table whole, else a start)."""
-    if isinstance(b, _Table):
+    if isinstance(b, Table):
         lay = _TableLayout(b)
         rows = [h for h, _ in lay.rows]
         return lay.head[0] + sum(rows if len(rows) <= 10 else rows[:3])
@@ -316,15 +316,15 @@ def keep_height(b) -> float:
 
 def place_block(flow: Flow, b) -> None:
     """A paragraph, list, table or preformatted block."""
-    if isinstance(b, _Para):
+    if isinstance(b, Para):
         _place_para(flow, b)
-    elif isinstance(b, _Bullets):
+    elif isinstance(b, Bullets):
         _place_bullets(flow, b)
-    elif isinstance(b, _Table):
+    elif isinstance(b, Table):
         _place_table(flow, b)
-    elif isinstance(b, _Tables):
+    elif isinstance(b, Tables):
         _place_tables(flow, b.tables)
-    elif isinstance(b, _Pre):
+    elif isinstance(b, Pre):
         _place_pre(flow, b)
     else:
         raise TypeError(f"unknown report block {b!r}")

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from ._capability import _capability_section
-from ._fit import _budget_section, _posterior_section, _profile_section, _residuals_section
-from ._machine import _errspec_section, _program_section
-from ._summary import _inputs_section, _summary_section
+from ._capability import capability_section
+from ._fit import budget_section, posterior_section, profile_section, residuals_section
+from ._machine import errspec_section, program_section
+from ._summary import inputs_section, summary_section
 from ._verdict import verdict_section
 
 #: (id, title) of the report's sections, in order
@@ -25,17 +25,17 @@ SECTIONS = (
 
 _BUILDERS = {
     "verdict": verdict_section,
-    "summary": _summary_section,
-    "profile": _profile_section,
-    "residuals": _residuals_section,
-    "posterior": _posterior_section,
-    "budget": _budget_section,
-    "capability": _capability_section,
-    "program": _program_section,
-    "errspec": _errspec_section,
-    "inputs": _inputs_section,
+    "summary": summary_section,
+    "profile": profile_section,
+    "residuals": residuals_section,
+    "posterior": posterior_section,
+    "budget": budget_section,
+    "capability": capability_section,
+    "program": program_section,
+    "errspec": errspec_section,
+    "inputs": inputs_section,
 }
 
 
-def _sections(res):
+def report_sections(res):
     return [(sid, title, _BUILDERS[sid](res)) for sid, title in SECTIONS]

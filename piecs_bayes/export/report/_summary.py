@@ -10,7 +10,7 @@ import numpy as np
 
 from ...fit import coverage_factor
 from ...geometry import drawn_scale
-from .model import _Bullets, _f, _Fig, _Para, _Pre, _Table, _Tables, css_class
+from .model import Bullets, Fig, Para, Pre, Table, Tables, css_class, num
 
 #: coverage probability of a k = 2 interval under the normal (JCGM 100 G.6)
 K2_COVERAGE = 0.9544997361036416
@@ -115,7 +115,7 @@ def summary_rows(res) -> list[dict]:
     return rows
 
 
-def _summary_table(res) -> _Table:
+def summary_table(res) -> Table:
     rows, classes, cells = [], [], []
     bayes = res.bayes_characteristics is not None
     for r in summary_rows(res):
@@ -124,17 +124,17 @@ def _summary_table(res) -> _Table:
             r["nominal"],
             tolerance_text(r["tol_lower_um"], r["tol_upper_um"], r["coordinate"]),
             r["at"] or "–",
-            _f(r["deviation_um"], "+.1f", 1) + " ± " + _f(r["U_um"], ".1f", 1),
+            num(r["deviation_um"], "+.1f", 1) + " ± " + num(r["U_um"], ".1f", 1),
         ]
         if bayes:
-            row.append(_f(r["bayes_um"], "+.1f", 1) + " ± " + _f(r["bayes_U_um"], ".1f", 1))
+            row.append(num(r["bayes_um"], "+.1f", 1) + " ± " + num(r["bayes_U_um"], ".1f", 1))
         row += [
             r["conformance"] or "–",
-            _f(r["null_band_um"], ".1f", 1),
-            _f(r["p_exceed"], ".3f", 1),
+            num(r["null_band_um"], ".1f", 1),
+            num(r["p_exceed"], ".3f", 1),
             r["verdict"],
             f"{r['gain']:.2f}",
-            _f(r["correction_um"], "+.1f", 1) if r["gain"] > 0 else "–",
+            num(r["correction_um"], "+.1f", 1) if r["gain"] > 0 else "–",
         ]
         rows.append(row)
         cls = [""] * len(row)
@@ -153,7 +153,7 @@ def _summary_table(res) -> _Table:
         "applied gain",
         "correction (µm)",
     ]
-    return _Table(
+    return Table(
         headers,
         rows,
         caption="Every length as drawn: on the diameter Ø for a diameter, on the axial "
@@ -199,16 +199,16 @@ def _headline(res) -> list[str]:
     return out
 
 
-def _summary_section(res) -> list:
-    blocks: list = [_Para(t) for t in _headline(res)]
+def summary_section(res) -> list:
+    blocks: list = [Para(t) for t in _headline(res)]
     for step, why in res.unavailable.items():
-        blocks.append(_Para(f"{step}: not available: {why}", "warn"))
+        blocks.append(Para(f"{step}: not available: {why}", "warn"))
     if res.skipped:
-        blocks.append(_Para(f"Steps not run (switched off): {', '.join(res.skipped)}.", "note"))
-    blocks.append(_summary_table(res))
+        blocks.append(Para(f"Steps not run (switched off): {', '.join(res.skipped)}.", "note"))
+    blocks.append(summary_table(res))
     if res.decisions is not None:
         blocks.append(
-            _Para(
+            Para(
                 "Why each verdict (lengths as drawn, in µm; the last line of each is the "
                 "conclusion):",
                 "note",
@@ -216,11 +216,11 @@ def _summary_section(res) -> list:
         )
         for d in res.decisions.decisions:
             blocks.append(
-                _Bullets(f"{d.feature}: {d.verdict}", list(d.reasons), css_class(d.verdict))
+                Bullets(f"{d.feature}: {d.verdict}", list(d.reasons), css_class(d.verdict))
             )
         if res.decisions.unmeasured:
             blocks.append(
-                _Para(f"Not measured (no decision): {', '.join(res.decisions.unmeasured)}.")
+                Para(f"Not measured (no decision): {', '.join(res.decisions.unmeasured)}.")
             )
     return blocks
 
@@ -233,7 +233,7 @@ _SETTING_LABELS = {
 }
 
 
-def _inputs_section(res) -> list:
+def inputs_section(res) -> list:
     base = res.study.path.parent
     rows = []
     for f in res.inputs:
@@ -257,21 +257,21 @@ def _inputs_section(res) -> list:
     if res.nose_radius is not None:
         cmd[0] += f" --nose-radius {res.nose_radius:g}"
     blocks = [
-        _Table(["role", "file", "bytes", "SHA-256"], rows, caption="Input files"),
-        _Tables(
+        Table(["role", "file", "bytes", "SHA-256"], rows, caption="Input files"),
+        Tables(
             [
-                _Table(["package", "version"], vers, caption="Versions"),
-                _Table(["setting", "value"], sets, caption="Settings of this run"),
-                _Table(["step", "seconds"], times, caption="Wall time per step"),
+                Table(["package", "version"], vers, caption="Versions"),
+                Table(["setting", "value"], sets, caption="Settings of this run"),
+                Table(["step", "seconds"], times, caption="Wall time per step"),
             ]
         ),
-        _Pre(cmd, caption="To reproduce (same inputs, versions and seed)"),
+        Pre(cmd, caption="To reproduce (same inputs, versions and seed)"),
     ]
     if res.settings.get("command"):
-        blocks.append(_Pre([str(res.settings["command"])], caption="This run's command line"))
+        blocks.append(Pre([str(res.settings["command"])], caption="This run's command line"))
     blocks += _calibration_blocks(res.study.probe)
     if res.warnings:
-        blocks.append(_Pre(list(res.warnings), caption="Warnings issued during the run"))
+        blocks.append(Pre(list(res.warnings), caption="Warnings issued during the run"))
     return blocks
 
 
@@ -292,23 +292,23 @@ def _calibration_blocks(probe) -> list:
         ["probe", str(cal.probe or "–")],
         ["date (age)", f"{cal.date} ({age:g} days)" if age is not None else "–"],
         ["probing feed", f"{cal.feed:g} mm/min" if cal.feed else "–"],
-        ["probing error (range of r)", _f(cal.probing_error, ".2f") + " µm"],
-        ["residual sd", _f(cal.residual_sd, ".2f") + " µm"],
+        ["probing error (range of r)", num(cal.probing_error, ".2f") + " µm"],
+        ["residual sd", num(cal.residual_sd, ".2f") + " µm"],
         ["dof", "∞" if not np.isfinite(cal.dof) else f"{cal.dof:g}"],
         ["artefact", ", ".join(f"{k} {v}" for k, v in cal.artefact.items()) or "–"],
     ]
     return [
-        _Tables(
+        Tables(
             [
-                _Table(
+                Table(
                     ["coefficient", "value (µm)", "u (µm)"],
                     rows,
                     caption="Probe calibration: r(θ) = r0 + Σ a_k cos kθ + b_k sin kθ",
                 ),
-                _Table(["", ""], facts, caption="The calibration"),
+                Table(["", ""], facts, caption="The calibration"),
             ]
         ),  # fmt: skip
-        _Fig(
+        Fig(
             "probe_calibration",
             lambda: probe_calibration_figure(cal),
             "The probe's effective radius by approach angle θ (from +X toward +Z), as "

@@ -12,10 +12,10 @@ from collections.abc import Mapping
 
 from ..machine import route_file_names
 from ._summary import summary_rows, tolerance_text
-from .model import _f, _PageBreak, _Para, _Table, css_class
+from .model import PageBreak, Para, Table, css_class, num
 
 
-def _verdict_table(rows: list[dict]) -> _Table:
+def _verdict_table(rows: list[dict]) -> Table:
     cells, table = [], []
     for r in rows:
         state = r["conformance"] or ("not measured" if r["verdict"] == "not measured" else "–")
@@ -24,13 +24,13 @@ def _verdict_table(rows: list[dict]) -> _Table:
                 r["feature"],
                 r["nominal"],
                 tolerance_text(r["tol_lower_um"], r["tol_upper_um"], r["coordinate"]),
-                _f(r["deviation_um"], "+.1f", 1) + " ± " + _f(r["U_um"], ".1f", 1),
+                num(r["deviation_um"], "+.1f", 1) + " ± " + num(r["U_um"], ".1f", 1),
                 state,
                 r["verdict"],
             ]
         )
         cells.append(["", "", "", "", css_class(state), css_class(r["verdict"])])
-    return _Table(
+    return Table(
         [
             "feature",
             "nominal (mm)",
@@ -54,11 +54,11 @@ def _names(rows, state: str) -> list[str]:
     return [r["feature"] for r in rows if r["conformance"] == state]
 
 
-def _part_sentence(rows: list[dict]) -> _Para:
+def _part_sentence(rows: list[dict]) -> Para:
     bad, amb = _names(rows, "does not conform"), _names(rows, "ambiguous")
     measured = [r for r in rows if r["conformance"]]
     if not measured:
-        return _Para("No conformance decision in this run (decisions switched off).", "note")
+        return Para("No conformance decision in this run (decisions switched off).", "note")
     if bad:
         text = f"The part does NOT conform: {', '.join(bad)} outside the tolerance by more than U."
         kind = "fail"
@@ -73,7 +73,7 @@ def _part_sentence(rows: list[dict]) -> _Para:
     missing = [r["feature"] for r in rows if r["verdict"] == "not measured"]
     if missing:
         text += f" Not measured: {', '.join(missing)}."
-    return _Para(text, kind)
+    return Para(text, kind)
 
 
 def _next_part(rows: list[dict]) -> str:
@@ -130,17 +130,17 @@ def verdict_section(res) -> list:
         f"{len(study.profile)} features; report made {res.created} with piecs_bayes "
         f"{res.versions.get('piecs_bayes', '?')}."
     )
-    blocks: list = [_Para(head), _verdict_table(rows), _part_sentence(rows)]
+    blocks: list = [Para(head), _verdict_table(rows), _part_sentence(rows)]
     nxt = _next_part(rows)
     if nxt:
-        blocks.append(_Para(nxt))
-    blocks.append(_Para(_load_line(res)))
+        blocks.append(Para(nxt))
+    blocks.append(Para(_load_line(res)))
     blocks.append(
-        _Para(
+        Para(
             "Checked by: ______________________    Date: ______________    "
             "Signature: ______________________",
             "sign",
         )
     )
-    blocks.append(_PageBreak())
+    blocks.append(PageBreak())
     return blocks

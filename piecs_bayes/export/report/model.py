@@ -11,13 +11,13 @@ from dataclasses import dataclass, field
 
 
 @dataclass
-class _Para:
+class Para:
     text: str
     kind: str = "p"  # "p" | "note" | "warn"
 
 
 @dataclass
-class _Table:
+class Table:
     headers: list[str]
     rows: list[list[str]]
     caption: str = ""
@@ -29,14 +29,14 @@ class _Table:
 
 
 @dataclass
-class _Tables:
+class Tables:
     """Small tables side by side."""
 
-    tables: list[_Table]
+    tables: list[Table]
 
 
 @dataclass
-class _Bullets:
+class Bullets:
     """A titled list (the reasons behind a verdict)."""
 
     title: str
@@ -45,12 +45,12 @@ class _Bullets:
 
 
 @dataclass
-class _PageBreak:
+class PageBreak:
     """The PDF starts a new page here (the HTML ignores it)."""
 
 
 @dataclass
-class _Pre:
+class Pre:
     lines: list[str]
     caption: str = ""
     diff: bool = False
@@ -58,7 +58,7 @@ class _Pre:
 
 
 @dataclass
-class _Fig:
+class Fig:
     name: str
     make: Callable
     caption: str
@@ -66,7 +66,7 @@ class _Fig:
     shrink: float = 0.75  # the PDF may draw it down to this share of its size to fit a page
 
 
-def _f(x, fmt="+.2f", scale=1e3) -> str:
+def num(x, fmt="+.2f", scale=1e3) -> str:
     """A number in display units, or an en dash when missing."""
     if x is None:
         return "–"
@@ -79,14 +79,14 @@ def _f(x, fmt="+.2f", scale=1e3) -> str:
     return format(x * scale, fmt)
 
 
-def _ci(iv, fmt=".2f") -> str:
+def interval_text(iv, fmt=".2f") -> str:
     lo, hi = iv
     if not (math.isfinite(lo) and math.isfinite(hi)):
         return "–"
     return f"[{lo:{fmt}}, {hi:{fmt}}]"
 
 
-def _is_num(s: str) -> bool:
+def is_num(s: str) -> bool:
     s = s.replace("±", "").replace("[", "").replace("]", "").replace(",", " ").strip()
     try:
         [float(t) for t in s.split() if t not in ("–",)]

@@ -123,7 +123,7 @@ def check_thin(thin) -> int | str:
     return int(thin)
 
 
-def _diagnose(kept: np.ndarray, lps: np.ndarray, run_thin: int, thin, tau_factor: float):
+def diagnose(kept: np.ndarray, lps: np.ndarray, run_thin: int, thin, tau_factor: float):
     """Thin and diagnose the kept draws of one run.
 
     `kept`: `(K, S, W, d)` draws (every `run_thin`-th step after burn-in), `lps`:
@@ -161,13 +161,13 @@ def _neg_hessian(log_prob):
 
 
 @functools.lru_cache(maxsize=64)
-def _neg_hessians(log_prob):
+def neg_hessians(log_prob):
     """`_neg_hessian` of many parts at once (`vmap` over the leading axis of the start
     and of every leaf of the arguments), cached per function."""
     return jax.jit(jax.vmap(jax.hessian(lambda t, a: -log_prob(t, a))))
 
 
-def _cov_from_hessian(h: np.ndarray) -> np.ndarray:
+def cov_from_hessian(h: np.ndarray) -> np.ndarray:
     """The start ball's covariance from the Hessian of -log_prob at the start."""
     w, v = np.linalg.eigh(0.5 * (h + h.T)) if np.all(np.isfinite(h)) else (None, None)
     # a start off the mode (e.g. a sigma at its declared value, not at the data's)
@@ -182,9 +182,9 @@ def _cov_from_hessian(h: np.ndarray) -> np.ndarray:
     return (v / np.abs(w)) @ v.T
 
 
-def _start_cov(log_prob, x0, args, cov0, ndim):
+def start_cov(log_prob, x0, args, cov0, ndim):
     if cov0 is None:
-        return _cov_from_hessian(np.asarray(_neg_hessian(log_prob)(jnp.asarray(x0), args)))
+        return cov_from_hessian(np.asarray(_neg_hessian(log_prob)(jnp.asarray(x0), args)))
     c = np.asarray(cov0, dtype=float)
     if c.ndim == 1:
         c = np.diag(c)
@@ -195,6 +195,6 @@ def _start_cov(log_prob, x0, args, cov0, ndim):
     return 0.5 * (c + c.T)
 
 
-def _sqrt_psd(c: np.ndarray) -> np.ndarray:
+def sqrt_psd(c: np.ndarray) -> np.ndarray:
     w, v = np.linalg.eigh(c)
     return v * np.sqrt(np.clip(w, 0.0, None))

@@ -42,12 +42,12 @@ from ...errors import AnalysisError, InputError
 from ._core import (
     ConvergenceError,
     ConvergenceWarning,
-    _cov_from_hessian,
-    _diagnose,
-    _neg_hessians,
-    _sqrt_psd,
-    _start_cov,
     check_thin,
+    cov_from_hessian,
+    diagnose,
+    neg_hessians,
+    sqrt_psd,
+    start_cov,
 )
 from ._diagnostics import problems as _problems
 from ._moves import DE_FRACTION, DE_SIGMA, STRETCH_A, check_moves, de_gamma0
@@ -393,10 +393,10 @@ def _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, init_scale):
     n_e = n_parts * k_ens
 
     if cov0 is None:  # every part's Hessian in one call
-        hs = np.asarray(_neg_hessians(log_prob)(jnp.asarray(x0), args))
-        roots = [_sqrt_psd(_cov_from_hessian(h)) * init_scale for h in hs]
+        hs = np.asarray(neg_hessians(log_prob)(jnp.asarray(x0), args))
+        roots = [sqrt_psd(cov_from_hessian(h)) * init_scale for h in hs]
     else:
-        roots = [_sqrt_psd(_start_cov(log_prob, x0[p], None, cov0[p], ndim)) * init_scale
+        roots = [sqrt_psd(start_cov(log_prob, x0[p], None, cov0[p], ndim)) * init_scale
                  for p in range(n_parts)]  # fmt: skip
 
     def root_of(p):
@@ -459,7 +459,7 @@ def _part_posterior(names, kept, kept_lp, acceptance, thin, thin_spec, *, nsteps
     """One part's [`Posterior`][] from its ensembles' kept draws `(K, S, W, d)` and
     log posteriors `(K, S, W)` (thinned further and diagnosed as
     `sample_posterior` does)."""
-    kp, lp_p, thin_p, tau, tau_max, reliable, ess, rhat = _diagnose(
+    kp, lp_p, thin_p, tau, tau_max, reliable, ess, rhat = diagnose(
         kept, kept_lp, thin, thin_spec, criteria["tau_factor"]
     )  # kp: (K, S, W, d)
     # a chain too short (or stuck) for an estimate: tau unknown, never trusted

@@ -48,10 +48,10 @@ from ...errors import AnalysisError, InputError
 from ._core import (
     ConvergenceError,
     ConvergenceWarning,
-    _diagnose,
-    _sqrt_psd,
-    _start_cov,
     check_thin,
+    diagnose,
+    sqrt_psd,
+    start_cov,
 )
 from ._diagnostics import problems as _problems
 from ._lockstep import sample_posteriors
@@ -174,7 +174,7 @@ def _sample_emcee(log_prob, x0, names, cov0, args, nwalkers, nsteps, burn, thin_
     kept, lps, acc, wall = _run_emcee(f, starts, x0.size, nsteps, burn, thin, moves, bool(progress))
     if callable(progress):
         progress("posterior diagnostics: autocorrelation times, ESS and R-hat per parameter")
-    kept, lps, thin, tau, tau_max, reliable, ess, rhat = _diagnose(
+    kept, lps, thin, tau, tau_max, reliable, ess, rhat = diagnose(
         np.stack(kept), np.stack(lps), thin, thin_spec, criteria["tau_factor"]
     )  # kept: (K, S, W, d)
     problems = _problems(
@@ -223,7 +223,7 @@ def _starts(f, log_prob, x0, args, cov0, nwalkers, n_ensembles, seed, init_scale
     """Per ensemble: walkers drawn around `x0` (redrawn where `f`, the vectorised
     log posterior, is not finite), their log posteriors and a random seed."""
     ndim = x0.size
-    root = _sqrt_psd(_start_cov(log_prob, x0, args, cov0, ndim)) * init_scale
+    root = sqrt_psd(start_cov(log_prob, x0, args, cov0, ndim)) * init_scale
     children = np.random.SeedSequence(seed).spawn(n_ensembles)
     starts = []
     for child in children:
