@@ -2,6 +2,9 @@
 JAX counterpart for many problems at once, diagnostics and posteriors."""
 
 from ... import _config  # noqa: F401  (float64 before any JAX array)
+from ._core import gaussian_loglik as gaussian_loglik
+from ._core import student_t_loglik as student_t_loglik
+from ._diagnostics import split_rhat as split_rhat
 from ._lockstep import sample_posteriors as sample_posteriors
 from ._moves import check_moves as check_moves
 from ._posterior import frozen as frozen
@@ -17,7 +20,4 @@ from ._priors import prior_from_spec as prior_from_spec
 from ._sampler import ConvergenceError as ConvergenceError
 from ._sampler import ConvergenceWarning as ConvergenceWarning
 from ._sampler import Posterior as Posterior
-from ._sampler import gaussian_loglik as gaussian_loglik
 from ._sampler import sample_posterior as sample_posterior
-from ._sampler import split_rhat as split_rhat
-from ._sampler import student_t_loglik as student_t_loglik
