@@ -4,7 +4,7 @@ For each data set and certified start: the status of a plain Levenberg-Marquardt
 fit, the minimum number of matching significant digits (lmfit's count,
 -log10(|a-b|/|b|)) of the parameters, of the standard errors and of the residual
 sum of squares, and the steps used. A failed start is retried with the setting
-the test suite documents (tests/fit/test_strd.py, EXPECTED_FAILURES).
+the test suite documents (tests/fit/lsq/test_strd.py, EXPECTED_FAILURES).
 
 Run: ``.venv/bin/python benchmarks/strd_table.py [--markdown]``
 """

@@ -20,7 +20,7 @@ of `mean`, `sd` and `process_sd` with the same rules (`_actions._evaluate`,
    conforms with the guard band; otherwise the verdict is "do not compensate" or
    "measure more" and the correction is 0.
 
-`tests/compensate/test_feedback.py` checks it against `decide` on random cases.
+`tests/feedback/test_feedback.py` checks it against `decide` on random cases.
 """
 
 from __future__ import annotations

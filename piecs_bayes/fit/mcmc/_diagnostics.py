@@ -16,7 +16,7 @@ ensemble**, **draw = the ensemble's walker trajectories one after the other**
 
 `ess_bulk` and `split_rhat` reproduce `arviz.ess(..., method="bulk")` and
 `arviz.rhat(..., method="rank")` (arviz 0.2x) to rounding, with the ranks shared
-between the two; `tests/fit/test_bayes.py` checks the parity on stored posteriors. One
+between the two; `tests/fit/mcmc/test_bayes.py` checks the parity on stored posteriors. One
 difference: with a single ensemble ArviZ's R-hat is NaN (fewer than 2 chains), while
 `split_rhat` still compares the two halves of its walkers (a NaN would pass any
 `rhat > rhat_max` test unseen).

@@ -24,7 +24,7 @@ from piecs_bayes.export import report_files, report_html, summary_html, summary_
 from piecs_bayes.export.report._sections import SECTIONS
 from piecs_bayes.jobs import JobResults, run_job
 
-DATA = Path(__file__).resolve().parents[2] / "data"
+DATA = Path(__file__).resolve().parents[3] / "data"
 DEMO = DATA / "demo" / "study.toml"
 BATCH = DATA / "batch" / "study.toml"
 PNG = b"\x89PNG\r\n\x1a\n"

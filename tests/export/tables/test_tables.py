@@ -22,7 +22,7 @@ from piecs_bayes.fit import SOURCE_UNITS
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import bayes_study, compensate_study, fit_study, toolpath_uncertainty
 
-DEMO = Path(__file__).resolve().parents[2] / "data" / "demo" / "study.toml"
+DEMO = Path(__file__).resolve().parents[3] / "data" / "demo" / "study.toml"
 
 FIT = [
     "part", "feature", "type", "parameter", "unit", "value", "std_error", "n_points",
