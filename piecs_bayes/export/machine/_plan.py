@@ -167,15 +167,15 @@ def write_plan(plan, out, *, protect=(), figure: bool = True) -> list[Path]:
         ),
     ]
     if figure:
+        import io
+
         import matplotlib.pyplot as plt
 
-        from ...io import write_file_atomic
+        from ...io import write_bytes_atomic
 
         fig = plan_figure(plan)
-        written.append(
-            write_file_atomic(
-                out / "plan.png", lambda fh: fig.savefig(fh, format="png", dpi=120), protect=protect
-            )  # fmt: skip
-        )
+        png = io.BytesIO()
+        fig.savefig(png, format="png", dpi=120)
         plt.close(fig)
+        written.append(write_bytes_atomic(out / "plan.png", png.getvalue(), protect=protect))
     return written
