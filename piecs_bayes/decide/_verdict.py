@@ -4,7 +4,7 @@
 writes, in the same branch, why: the reasons can never contradict the verdict. The
 reasons are plain sentences with lengths in µm on the coordinate the tolerance is
 drawn on (`_Words`): on the diameter for a diameter, on Z for a face, along the
-normal for tapers and arcs. The rule itself is in the `_decision` module docstring:
+normal for tapers and arcs. The rule (docs/models/decision.md):
 
 1. `compensate` when adjusting lowers the expected cost, the deviation is
    significant (when required), the correction is allowed and the compensated
