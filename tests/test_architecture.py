@@ -143,6 +143,20 @@ def test_no_module_is_longer_than_the_limit():
     assert long == {}, f"modules over {MAX_LINES} lines"
 
 
+def test_module_docstrings_are_short():
+    # a module docstring says what the module is for and what it promises (STYLE.md,
+    # "One idea per room"): at most 15 lines from its first line of text to its last;
+    # the model, its derivation, the numbers measured and the history go to docs/
+    most = 15
+    long = {}
+    for p in _modules().values():
+        tree = ast.parse(p.read_text(encoding="utf-8"), filename=str(p))
+        doc = ast.get_docstring(tree, clean=False)
+        if doc and (n := len(doc.strip("\n").splitlines())) > most:
+            long[str(p.relative_to(ROOT))] = n
+    assert long == {}, f"module docstrings over {most} lines (move the rest to docs/): {long}"
+
+
 def test_the_checks_see_imports():
     # the helpers themselves: a relative, a lazy and a root import are all found
     src = (

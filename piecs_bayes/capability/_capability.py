@@ -1,47 +1,17 @@
 """Process capability: Cp, Cpk, Pp, Ppk, Cpm with confidence and credible intervals.
 
-Everything here works on plain numbers (one value per part and feature, in mm);
-reading probe files and fitting parts is done elsewhere.
+[`capability`][] takes plain numbers (the values of one characteristic, one per part, in
+mm; individuals or subgroups) and specification limits, and returns a
+[`CapabilityResult`][]: Cp, Cpk, Cpm from the within (short-term) sigma, Pp, Ppk from the
+overall sigma, each with its two-sided confidence interval at `confidence`, and with
+`bayes=True` posterior medians, credible intervals and P(Cpk > `threshold`). A gauge
+(measurement) standard deviation `gauge_sd` is subtracted from every variance.
+`convention="piecs"` (default) uses exact constants and the effective degrees of freedom
+of the sigma estimate; `convention="qcc"` reproduces R's `qcc::process.capability`. Bad
+data or limits raise `InputError`; a gauge variance that swallows the process variance
+raises `AnalysisError`. Reading probe files and fitting parts is done elsewhere.
 
-**Indices.** With specification limits $L$, $U$, target $T$ (default the mid-point),
-mean $\\bar y$ and a process standard deviation $\\sigma$:
-
-- $C_p = (U-L)/(6\\sigma)$, $C_{pl} = (\\bar y - L)/(3\\sigma)$,
-  $C_{pu} = (U-\\bar y)/(3\\sigma)$, $C_{pk} = \\min(C_{pl}, C_{pu})$,
-  $C_{pm} = (U-L)/(6\\sqrt{\\sigma^2 + (\\bar y - T)^2})$;
-- Cp, Cpk, Cpm use the **within** (short-term) sigma: $\\bar R/d_2$ or
-  $\\bar S/c_4$ for subgroups, $\\overline{MR}/d_2(2)$ for individuals;
-  Pp, Ppk use the **overall** sample standard deviation $s$ of all values.
-
-**Confidence intervals** (level $1-\\alpha$, $z = \\Phi^{-1}(1-\\alpha/2)$, $n$ values,
-$\\nu$ degrees of freedom of the sigma estimate):
-
-- Cp, Pp (chi-square): $\\hat C_p\\sqrt{\\chi^2_{\\alpha/2,\\nu}/\\nu}$ to
-  $\\hat C_p\\sqrt{\\chi^2_{1-\\alpha/2,\\nu}/\\nu}$;
-- Cpk, Ppk, Cpl, Cpu (Bissell 1990, normal approximation):
-  $\\hat C\\,(1 \\mp z\\sqrt{1/(9n\\hat C^2) + 1/(2\\nu)})$;
-- Cpm (Boyles 1991, moment-matched chi-square):
-  $\\hat C_{pm}\\sqrt{\\chi^2_{q,\\nu_m}/\\nu_m}$ with
-  $\\nu_m = (1+r^2)^2/(1/\\nu + 2r^2/n)$, $r = (\\bar y - T)/\\hat\\sigma$
-  (equal to Boyles' $n(1+r^2)^2/(1+2r^2)$ when $\\nu = n$).
-
-`convention="piecs"` (default) uses exact $d_2, c_4$, the *effective* degrees
-of freedom of the sigma estimate (Patnaik: $\\nu = 1/(2\\,\\mathrm{Var}(\\hat\\sigma/\\sigma))$;
-$\\bar R$: $m d_2^2/(2 d_3^2)$; $\\bar S$: $m c_4^2/(2(1-c_4^2))$; $\\overline{MR}$:
-about $0.6(n-1)$ from the correlation of neighbouring ranges; overall $s$: $n-1$),
-and the formulas above. `convention="qcc"` reproduces R's `qcc::process.capability`
-(and Montgomery's worked examples): 3-decimal table constants, $\\nu = n-1$ whatever the
-sigma estimator, Cpl/Cpu limits with the one-sided $z_{1-\\alpha}$, and the Cpm degrees
-of freedom $n(1+r^2)/(1+2r^2)$. With $\\bar R$ or $\\overline{MR}$ sigmas the qcc intervals
-are too narrow (the estimate has fewer than $n-1$ degrees of freedom).
-
-**Gauge variance** $u_g^2$ (measurement repeatability) is subtracted from every
-variance: $\\sigma_p^2 = \\sigma^2 - u_g^2$; the intervals then use
-$\\nu_p = \\nu(\\sigma_p^2/\\sigma^2)^2$ (delta method), and Bayesian draws with
-$\\sigma^2 \\le u_g^2$ are discarded.
-
-Bayesian credible intervals (`bayes=True`) are described in `bayes_capability`, the
-stability check in `_stability`, the predicted capability in `_prediction`.
+The model (indices, intervals, conventions, gauge variance): docs/models/capability.md.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Capability indices from a mean and a sigma, and their confidence intervals.
 
-Formulas and conventions are in the capability module's docstring: the
-chi-square interval of Cp, Pp (and Cpm with moment-matched degrees of freedom) and
-Bissell's normal approximation for Cpk, Ppk, Cpl, Cpu.
+The chi-square interval of Cp, Pp (and Cpm with moment-matched degrees of freedom) and
+Bissell's normal approximation for Cpk, Ppk, Cpl, Cpu; formulas and conventions in
+docs/models/capability.md.
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ size, $\\overline{MR}/d_2(2)$ for individuals, and the overall sample standard d
 Each estimate carries its effective degrees of freedom (Patnaik:
 $\\nu = 1/(2\\,\\mathrm{Var}(\\hat\\sigma/\\sigma))$; $\\bar R$: $m d_2^2/(2 d_3^2)$;
 $\\bar S$: $m c_4^2/(2(1-c_4^2))$; $\\overline{MR}$: about $0.6(n-1)$; overall $s$: $n-1$),
-or $\\nu = n - 1$ and 3-/4-decimal table constants under `convention="qcc"` (see the
-capability module's docstring).
+or $\\nu = n - 1$ and 3-/4-decimal table constants under `convention="qcc"` (see
+docs/models/capability.md).
 """
 
 from __future__ import annotations

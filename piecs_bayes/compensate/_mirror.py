@@ -1,24 +1,16 @@
 """PIECS mirroring and re-intersection: fitted deviations -> adjusted tool path.
 
-The compensated feature is the nominal one with the fitted deviation mirrored
-(times a gain): ``dev_c = -gain * dev``. The adjusted path's vertices are
-rebuilt from the compensated features, one junction at a time, by these rules
-(NISTIR 5797 re-intersection, with the tangency rule of NIST's later work):
+The compensated feature is the nominal one with its fitted deviation mirrored times a
+gain, `dev_c = -gain * dev` ([`compensated_deviations`][]); [`adjusted_geometry`][]
+rebuilds the path's vertices (and the arcs' centres and radii) from the compensated
+features one junction at a time (NISTIR 5797 re-intersection, tangency kept where an
+arc meets a neighbour tangentially); [`adjusted_path`][] returns them as an
+[`AdjustedPath`][] (part frame, mm, X a radius), refusing with `AnalysisError`
+compensated features that do not meet and, with `max_correction`, a vertex that moves
+farther. Everything is a pure JAX function of the deviations, so the Jacobians of every
+vertex with respect to every fitted parameter come from `jax.jacfwd`.
 
-- **sharp junction**: intersection of the two compensated curves, the branch
-  nearest the nominal vertex;
-- **tangent junction with an arc** (a fillet meeting a diameter or face):
-  intersecting nearly tangent curves is ill-conditioned, so tangency is kept
-  instead. An arc tangent at *both* ends is re-placed with its compensated
-  radius tangent to both compensated neighbours (its fitted centre shift is
-  not used: the neighbours fix the centre); an arc tangent at one end only keeps
-  its compensated radius and has its centre moved along the neighbour's normal
-  until it is tangent. The vertex is the exact tangent point;
-- **tangent junction of two lines** (collinear features): the vertex is the
-  mid-point of the nominal vertex's projections onto both compensated lines.
-
-Everything is a pure JAX function of the deviations, so Jacobians of every
-vertex with respect to every fitted parameter come from ``jax.jacfwd``.
+The junction rules: docs/models/mirroring.md.
 """
 
 from __future__ import annotations

@@ -1,28 +1,17 @@
-"""Tool-offset (wear) updates from measured mean errors (data; `piecs_bayes.export`
+r"""Tool-offset (wear) updates from measured mean errors (data; `piecs_bayes.export`
 writes them as G10 lines and JSON).
 
 The everyday compensation (PIECS option c): correct only the mean error of a tool by
-changing its offsets, the way probing cycles on controllers do it.
+changing its offsets, as the probing cycles of controllers do. [`tool_offset_update`][]
+takes the mean errors (mm, measured minus nominal along the machine axis: X of a
+diameter as a diameter or a radius per `x_mode`, Z of a face; the nose radius as the
+effective minus the tool-table radius) with their standard uncertainties and returns a
+[`ToolOffsetUpdate`][]: per axis the correction $-g\,e$ ($+g\,e$ for R) with standard
+uncertainty $g\,u$, or no update inside the null band or below `k_significance`
+standard uncertainties; an error above `upper_limit` on any axis blocks the whole
+update (`blocked=True` with the reason, or `AnalysisError` with `raise_on_block=True`).
 
-**Sign convention.** An *error* is measured minus nominal along the machine axis
-(mm): `x_error` of a diameter (in `x_mode="diameter"`: measured diameter minus nominal
-diameter; in `"radius"`: the radial error), `z_error` of a face position. For a tool
-cutting on the +X side, a diameter that comes out too large is a positive X error (for
-a tool at negative X the sign flips). The offset correction is $-g\\,e$ (the controlled
-point moves against the error), so the new offset is `current - g * error`; e.g. a
-diameter 0.02 too large gives an X wear change of -0.02 (diameter). `nose_radius_error`
-is the effective (fitted) nose radius minus the tool-table radius; the radius changes by
-$+g\\,e$.
-
-**Rules per axis** (controller practice: Renishaw-style "null band", "feedback
-percentage", "upper tolerance limit"):
-
-- $|e| \\le$ `null_band`: no update (status `"null band"`);
-- $|e| \\le$ `k_significance`$\\cdot u$: no update (status `"not significant"`; off by default);
-- $|e| >$ `upper_limit` on **any** axis: the whole update is blocked (a crash, a
-  broken insert or a wrong offset is likelier than wear); `blocked=True` with the
-  reason, or `AnalysisError` with `raise_on_block=True`;
-- otherwise the correction is $-g\\,e$ ($+g\\,e$ for R) with standard uncertainty $g\\,u$.
+Sign convention and rules: docs/errspec.md, "Tool-offset updates".
 """
 
 from __future__ import annotations

@@ -1,36 +1,16 @@
-"""Candidate actions of the compensation decision and their expected losses.
+r"""Candidate actions of the compensation decision and their expected losses.
 
-The *deviation* $\\delta$ of a feature is fitted minus nominal (mm); a *correction* $c$ is
-what the finish cut adds, so the finish-cut deviation becomes $\\delta + c$; a *gain*
-$g$ means $c = -g\\,\\hat\\delta$ with $\\hat\\delta$ the estimate handed in (posterior mean).
+For the posterior of a feature's deviation $\delta$ (fitted minus nominal, mm; normal
+from mean and sd, or weighted samples) and a correction $c$ that the finish cut adds,
+the expected loss is quadratic off-target loss plus a cost per out-of-tolerance part
+over the parts the decision affects, plus a cost when the program is changed. Each
+candidate action (`none`, `full`, `fraction`, `grubbs`, `grubbs_prior`, `bayes`: the
+correction that minimises the loss) is evaluated into an [`ActionLoss`][], with the
+significance $P(|\delta| > b)$ for the null band $b$; `_evaluate` gathers what
+`_verdict.conclude` needs. With finite degrees of freedom the posterior is given as
+deterministic quantile draws of $y + u\,t_\nu$ (see `decide`).
 
-**Loss.** Per part, quadratic off-target loss plus a cost per out-of-tolerance part;
-per decision, a cost $C_A$ when the program is changed:
-
-$$L(c) = N\\,\\big(k\\,E[(\\delta + c + \\varepsilon_A)^2]
- + C_\\text{out}\\,P(\\text{part outside } [T_L, T_U])\\big) + C_A\\,[c \\ne 0],$$
-
-with $\\varepsilon_A \\sim N(0, s_A^2)$ the error of the realised adjustment (only when
-adjusting), the part value $\\delta + c + \\varepsilon_A + N(0, \\sigma_p^2)$ and $N$ the
-parts the decision affects. Expectations are over the posterior of $\\delta$ (normal from
-mean and sd, or weighted samples). With normal posterior $N(m, s^2)$:
-$E[(\\delta+c)^2] = (m+c)^2 + s^2$; adjusting fully beats doing nothing iff
-$m^2 > s_A^2 + C_A/(kN)$ when out-of-tolerance costs are negligible.
-
-**Candidate actions** (all relative to the estimate $\\hat\\delta$ handed in):
-
-- `none`: $c = 0$;
-- `full`: PIECS mirroring, $c = -\\hat\\delta$;
-- `fraction`: controller feedback percentage, $c = -\\lambda\\hat\\delta$;
-- `grubbs`: Grubbs' harmonic rule for the $t$-th setup adjustment, $c = -\\hat\\delta/t$;
-- `grubbs_prior`: its prior-shrunk form $c = -\\hat\\delta/(t + u^2/s_d^2)$ with $u$ the
-  estimate's standard uncertainty and $s_d$ the prior sd of deviations (`prior_sd`);
-- `bayes`: $c^* = \\arg\\min_c L(c)$ under the posterior (including the prior when
-  `prior_sd` is given), or none when not adjusting is cheaper.
-
-**Significance**: $p_\\text{exceed} = P(|\\delta| > b)$ for the null band $b$.
-With finite degrees of freedom the posterior is given as deterministic quantile draws
-of $y + u\\,t_\\nu$ (see `decide`).
+The loss and the actions: docs/models/decision.md.
 """
 
 from __future__ import annotations

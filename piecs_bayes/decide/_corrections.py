@@ -1,26 +1,16 @@
 """The one-part decision's correction, vectorised: `decide(...).correction` for many parts.
 
-A replay of the `bayes` policy over 1,000 simulated runs asks the one-part decision
-50,000 times; `decide` builds a full [`Decision`][] (reasons, every action, "measure
-more" search) each time. For a normal posterior (`samples` and `dof` not used) and no
-`n_points`, its correction is a short chain of closed forms, computed here for arrays
-of `mean`, `sd` and `process_sd` with the same rules (`_actions._evaluate`,
-`_verdict.conclude`):
+A replay of the `bayes` feedback policy asks the one-part decision tens of thousands of
+times; `decide` builds a full [`Decision`][] each time. For a normal posterior
+(`samples` and `dof` not used) and no `n_points`, its correction is a short chain of
+closed forms, which [`corrections`][] computes for arrays of `mean`, `sd` and
+`process_sd` (mm) with the same rules as `decide` (`_actions._evaluate`,
+`_verdict.conclude`): the Bayes correction, none when adjusting does not lower the
+loss, and 0 unless the verdict would be "compensate". It returns the corrections (mm)
+shaped like the broadcast inputs. `tests/compensate/test_feedback.py` checks it against `decide`
+on random cases.
 
-1. posterior $N(m, s^2)$ (shrunk by `prior_sd` when set); the loss
-   $L(c) = N(k\\,E[x^2] + C_\\text{out}\\,P(\\text{out})) + C_A[c \\ne 0]$ depends on
-   $c$ only through $x = m + c$, so the Bayes correction is $x^* - m$ with $x^*$ the
-   minimiser of $k x^2 + C_\\text{out}P_\\text{out}(x)$ (a grid of 401 points over
-   $\\pm\\max(T_U - T_L, 6s)$, then golden-section search in the bracket, as `decide`
-   does with `minimize_scalar`);
-2. no adjustment when that does not lower the loss; the gain $-c/\\hat\\delta$ clipped
-   to $[0, 1]$;
-3. the correction is applied only when it is justified (significant, when
-   significance is required), within `max_correction`, and the compensated part
-   conforms with the guard band; otherwise the verdict is "do not compensate" or
-   "measure more" and the correction is 0.
-
-`tests/feedback/test_feedback.py` checks it against `decide` on random cases.
+The closed forms: docs/models/decision.md, "Many parts at once".
 """
 
 from __future__ import annotations

@@ -1,38 +1,18 @@
-"""Is compensation justified? A per-feature decision from the posterior of the deviation.
+r"""Is compensation justified? A per-feature decision from the posterior of the deviation.
 
-The *deviation* $\\delta$ of a feature is fitted minus nominal (mm); a *correction* $c$ is
-what the finish cut adds, so the finish-cut deviation becomes $\\delta + c$; a *gain*
-$g$ means $c = -g\\,\\hat\\delta$ with $\\hat\\delta$ the estimate handed in (posterior mean).
+[`decide`][] takes the tolerance and the posterior of one feature's deviation $\delta$
+(fitted minus nominal, mm: `mean` and `sd` with their degrees of freedom `dof`, or
+`samples`) and returns a [`Decision`][]: the verdict (`compensate` with the Bayes gain,
+`do not compensate`, or `measure more` with the number of extra probe points that would
+decide), the gain and correction (what the finish cut adds: $c = -g\,\hat\delta$), every
+candidate action's expected loss, the significance, the conformance before and after
+(ISO 14253-1, with guard bands) and the reasons. With finite `dof` the deviation is
+$y + u\,t_\nu$. `coordinate` and `scale` only state the result as drawn (reasons,
+`drawn_*`), never change the verdict. Losses and actions are in `_actions`, conformance
+in `_conformance`, the verdict and its reasons in `_verdict`, the settings in
+`_settings`.
 
-Losses and candidate actions are described in `_actions`, conformance (ISO 14253-1,
-guard bands, $p_c$) in `_conformance`, the settings in `_settings`.
-
-**Degrees of freedom.** When $u$ comes with finite (effective) degrees of freedom
-$\\nu$ (an estimated probe sigma, Welch-Satterthwaite over the sources), the
-deviation's distribution is $y + u\\,t_\\nu$: the losses and $p_\\text{exceed}$ are
-taken over it (deterministic quantile draws), $p_c$ uses the $t_\\nu$ cdf and the
-coverage factor is $t_\\nu$ at the probability $k_\\text{cov}$ has under the normal
-(95.45 % for $k = 2$, JCGM 100 G.6).
-
-**Verdict** (`_verdict`, which writes the reasons in the same branch that picks it):
-
-1. `compensate` (with the Bayes gain) when the Bayes action adjusts (and, when
-   `require_significance`, $p_\\text{exceed} \\ge$ `p_significant`), its correction is
-   within `max_correction`, and the compensated feature is predicted to conform with
-   the guard band;
-2. `do not compensate` when the deviation is not significant (or adjusting does not
-   pay) and the uncompensated feature conforms, or when the correction is blocked by
-   `max_correction` (a blocked correction means: investigate first);
-3. `measure more` otherwise: the uncertainty is too large against the tolerance to
-   demonstrate conformance or significance. The number of extra probe points that
-   would decide it assumes the random part of $u$ shrinks as $1/\\sqrt n$ (a
-   systematic part `u_systematic` does not) and, with finite $\\nu$, that its
-   degrees of freedom grow by one per added point (`_grown_dof`); when no number of
-   points decides, the Bayes action is taken and the reason says so.
-
-**As drawn.** The numbers are normal deviations; `coordinate` and `scale` say how the
-tolerance is drawn (`geometry.drawn_scale`: 2 on a diameter) so that the reasons and
-the `drawn_*` values speak in the drawing's terms (µm on the diameter, ...).
+The decision rule: docs/models/decision.md.
 """
 
 from __future__ import annotations

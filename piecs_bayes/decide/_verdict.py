@@ -1,10 +1,10 @@
 """The verdict of a compensation decision and its reasons, from one place.
 
-[`conclude`][] picks the verdict from the evaluated actions (`_actions._Core`) and
+[`conclude`][] picks the verdict from the evaluated actions (`_actions.CoreVerdict`) and
 writes, in the same branch, why: the reasons can never contradict the verdict. The
 reasons are plain sentences with lengths in µm on the coordinate the tolerance is
 drawn on (`VerdictWords`): on the diameter for a diameter, on Z for a face, along the
-normal for tapers and arcs. The rule itself is in the `_decision` module docstring:
+normal for tapers and arcs. The rule (docs/models/decision.md):
 
 1. `compensate` when adjusting lowers the expected cost, the deviation is
    significant (when required), the correction is allowed and the compensated

@@ -1,43 +1,17 @@
 """The numerical core of part-to-part tracking: a collapsed mixture Kalman filter, batched.
 
-The model and the notation are those of `_tracking` (which documents them); this module
-holds the arithmetic, vectorised with NumPy over any number of independent series (runs
-of parts times hyper-parameter grid points), so that 1,000 simulated runs on a grid of
-hyper-parameters filter in one pass.
+The model and its notation are those of `_tracking` (docs/feedback.md); this module holds
+the arithmetic, vectorised with NumPy over any number of independent series (runs of
+parts times hyper-parameter grid points), so that 1,000 simulated runs on the grid filter
+in one pass. [`mixture_filter`][] keeps the posterior over the parts' indicators
+(regular, odd, undeclared step) as one Gaussian per recent event (`STEP_MEMORY`
+components for steps), and returns per part and series the log predictive density, the
+predicted and filtered level and drift, the indicators' probabilities with hindsight
+and, with `ahead`, predictions further ahead; [`smoother`][] gives the smoothed level.
+A declared tool change restarts the wear ([`wear_factor`][]); with a diffuse first
+level, part 0 sets the level and contributes no likelihood.
 
-**State.** $x_k = (\\ell_k, d_k)$, level and drift of part $k$. Each part has an
-indicator $s_k \\in \\{0, 1, 2\\}$: 0 regular, 1 odd part (observation variance
-$+\\,\\sigma_o^2$), 2 undeclared step (level variance $+\\,\\sigma_s^2$). A declared tool
-change adds $\\sigma_s^2$ whatever $s_k$ and removes the wear of the old edge (below).
-Prior $\\pi = (1 - p_o - p_s, p_o, p_s)$, at a declared change $(1 - p_o, p_o, 0)$.
-
-**Filter.** The exact posterior over the indicators is a mixture of $3^n$ Gaussians.
-It is kept as $L + 2$ Gaussians ($L$ = `STEP_MEMORY`), one per *recent event*: none
-kept apart (`base`), the last part odd, or an undeclared step $j = 0, \\dots, L - 1$
-parts ago followed by regular parts. Part $k+1$ expands every component by its own
-indicator ($3(L + 2)$ Kalman updates), weighs each by $w_c\\,\\pi_{s}\\,
-N(y_{k+1}; \\hat y, S)$ and merges, by moment matching, those that map to the same
-component: a new odd part or step starts its own component (merging all sources); a
-regular part moves "step $j$ ago" to "step $j + 1$ ago", and "odd" and "step $L - 1$ ago"
-into `base`. The log predictive density of $y_{k+1}$ is the log of the sum of the
-weights. An odd part is thus judged with one part of hindsight (the next part is back
-on the level: Bar-Shalom & Li's GPB2, which is `STEP_MEMORY = 1`), a step with up to
-$L - 1$ parts of hindsight before its hypothesis is merged: merging a step that the
-next part alone cannot confirm or refute widens the level's variance and makes the
-filter follow the scatter of the next parts, the cost GPB2 pays in a run without
-steps (see docs/feedback.md). The merged weights give the indicators' probabilities
-with hindsight (`p_lag`).
-
-**Declared tool change: the wear restarts.** A new edge has no flank wear: at a
-declared change at part $t$ the level is $\\ell_t = \\ell_{t-1} + d\\,(1 - \\rho m)
-+ J$, with $m$ the parts cut since the previous declared change (or since the first
-part of the run, which is taken to start on a fresh edge), $\\rho$ = `wear_reset`
-(1: all the wear of the old edge, $m d$ for a constant wear rate, goes with it) and
-$J \\sim N(0, \\sigma_s^2)$ the new edge's setting. Linear in the state: exact Kalman.
-
-**Diffuse start.** With `level0_sd = None` the level of part 0 is diffuse: part 0 sets
-the level ($\\ell_0 \\mid y_0 \\sim N(y_0, R_0)$, $R_0$ its observation variance) and
-contributes no likelihood (the diffuse likelihood of Durbin & Koopman, 2012, §5.7).
+The filter's arithmetic: docs/feedback.md, "The filter".
 """
 
 from __future__ import annotations

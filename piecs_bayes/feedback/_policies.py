@@ -1,50 +1,18 @@
 """Feedback over a production run: the policies and the counterfactual replay.
 
-**Counterfactual.** `deviation[k]` is the measured deviation of part $k$ as it would
-have been cut without any feedback correction (mm, normal deviation, + = material
-left). A policy sets the correction $c_k$ of part $k$ from what it has seen of the
-parts before ($k' < k$) only; the correction adds to the part:
-$r_k = \\delta_k + c_k$ is the realised deviation, and $r_k$ (its measurement) is all
-the policy sees of part $k$. Part 0 is cut with $c_0 = 0$. The replay assumes that a
-correction acts one-for-one and at once, and that it does not change the part's
-scatter (true for a wear-offset or a path correction of the finish cut).
+`deviation[k]` is the measured deviation of part $k$ as it would have been cut without
+any feedback correction (mm, normal deviation, + = material left). A policy sets the
+correction of part $k$ from the parts before it only; the correction adds to the part,
+and the realised deviation is all the policy sees. [`replay`][] (one run) and
+[`replay_runs`][] (many) return a [`PolicyResult`][] per policy of `POLICIES`: the
+shop's anchors (`none`, `full`, `fixed_gain`, `mean_value`, `ewma`, `dewma`) and `bayes`
+(the tracking model's predictive handed to the one-part decision, `BAYES_DECISION`).
+[`tune`][] replays every setting of `TUNING_GRIDS[policy]` and keeps the lowest RMS
+deviation (a hindsight advantage `bayes` does not get); `SHOP_SETTINGS` is the one
+setting per anchor for a machine. [`next_part`][] is the `bayes` correction for the
+next part, [`predictive_coverage`][] the share of parts inside their predictive interval.
 
-**Policies** (`POLICIES`):
-
-- `none`: $c_k = 0$.
-- `full`: PIECS mirroring of the last part, $c_{k+1} = c_k - r_k$.
-- `fixed_gain` (Renishaw Inspection Plus style): feedback percentage $g$, null band
-  $b$, upper limit $L$: $c_{k+1} = c_k - g\\,r_k$ when $b \\le |r_k| \\le L$; inside
-  the null band nothing changes; beyond the upper limit nothing changes and the part
-  is flagged (`flags`). $b$ and $L$ are given as fractions of the tolerance half-width.
-- `mean_value` (Siemens measuring cycles): $c_{k+1} = -\\frac1K\\sum_{i=k-K+1}^{k}
-  (r_i - c_i)$, the mean of the last $K$ uncompensated estimates.
-- `ewma` (Ingolfsson & Sachs 1993): $a_k = \\lambda(r_k - c_k) + (1-\\lambda)a_{k-1}$,
-  $a_0 = r_0 - c_0$, $c_{k+1} = -a_k$.
-- `dewma` (double EWMA, Butler & Stefani 1994): $a_k = \\lambda_1 e_k +
-  (1-\\lambda_1)a_{k-1}$, $D_k = \\lambda_2(e_k - a_{k-1}) + (1-\\lambda_2)D_{k-1}$ with
-  $e_k = r_k - c_k$, $a_0 = e_0$, $D_0 = 0$; $c_{k+1} = -(a_k + D_k)$ (a drift $d$ per
-  part is followed without lag).
-- `bayes`: the tracking model (`_tracking`, hyper-parameters averaged over its grid
-  with weights from the parts before $k$ only) predicts the level of part $k$,
-  $N(m_k, v_k)$; the one-part decision (`decide`) is handed the deviation part $k$
-  would have with the current correction, `mean` $= \\beta m_k + c_{k-1}$,
-  `sd` $= \\sqrt{\\beta^2 v_k}$, with `process_sd` at least the model's scatter; its
-  `correction` is the adjustment, $c_k = c_{k-1} + $ correction. With one part and no
-  process noise this is the one-part decision itself. The decision's `max_correction`
-  (default: the tolerance width; "investigate first") withholds an adjustment larger
-  than it, unless the adjustment brings the total correction closer to zero: undoing
-  a correction is never blocked (else a large correction, e.g. after two odd parts
-  taken for a step, would be locked in: undoing it is an adjustment as large).
-
-The memory of `mean_value`, `ewma` and `dewma` restarts at a declared tool change
-(as a controller's cycle is reset with a new tool); `bayes` knows the change as a
-level step of unknown size and that the new edge starts unworn (the wear accumulated
-since the previous change goes with the old edge: `TrackModel.wear_reset`).
-
-**Tuning.** The anchors are tuned fairly: `tune` replays every setting of
-`TUNING_GRIDS[policy]` on the same data and keeps the lowest RMS deviation (a
-hindsight advantage `bayes` does not get: its settings are fixed).
+The policies and the counterfactual: docs/feedback.md, "The policies".
 """
 
 from __future__ import annotations

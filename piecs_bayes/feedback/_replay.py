@@ -1,27 +1,17 @@
 """The closed loop of a production run as a shop runs it: sampled inspection, late
 results, a correction that acts with an unknown gain.
 
-`_feedback` states the counterfactual (`deviation[k]`: part $k$ as cut without any
+`_policies` states the counterfactual (`deviation[k]`: part $k$ as cut without any
 correction). Here the loop is run part by part with three facts of the shop floor:
+only every `inspect_every`-th part is measured (every part's deviation counts), the
+result of a part arrives `delay` parts late, and a correction $c$ moves the part by
+`gain` times $c$ (the policies assume 1). A policy decides when a result arrives and
+holds its correction until the next; `bayes` treats a part not measured as a prediction
+step of the filter. `anchor_loop` and `bayes_loop` run the loop; [`expand_sampled`][]
+places the measured parts' values in production order (NaN between). With
+`inspect_every=1`, `delay=0`, `gain=1` this is the plain replay exactly (a test).
 
-- **sampled inspection** (`inspect_every` $E$): only parts $0, E, 2E, \\dots$ are
-  measured; the parts between are cut with the last correction, and every part's
-  deviation counts;
-- **metrology delay** (`delay` $D$): the result of part $j$ arrives after part
-  $j + D$ is cut, so the correction of part $k$ uses the measurements of parts
-  $\\le k - 1 - D$ (a policy decides when a result arrives and holds its correction
-  until the next one);
-- **correction gain** (`gain` $\\gamma$): a correction $c$ moves the part by
-  $\\gamma c$ (per run; the policies assume 1). The realised deviation is
-  $r_k = \\delta_k + \\gamma c_k$ and a policy sees $r_k$ and knows the $c_k$ it
-  applied: its estimate of the uncompensated deviation is $r_k - c_k$.
-
-With $E = 1$, $D = 0$, $\\gamma = 1$ this is the replay of `_feedback` exactly (a
-test). The anchors apply their rule at each arrival on the results that arrived;
-`bayes` tracks the arrived results (a part not measured is a prediction step of the
-filter, a late result updates the part it belongs to) and hands the decision the
-level predicted over the parts its correction will be held for (the mean over the
-window, its spread added to the part-to-part scatter).
+The loop: docs/feedback.md, "The loop as shops run it".
 """
 
 from __future__ import annotations

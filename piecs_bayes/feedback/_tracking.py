@@ -1,99 +1,18 @@
 """Part-to-part tracking of one feature characteristic over a production run.
 
-The parts of a run are cut one after the other by the same program; $y_k$ is the
+The parts of a run are cut one after the other by the same program; `values[k]` is the
 measured normal deviation of part $k$ (mm, + = material left) with its standard
-uncertainty $u_k$ from the part's own fit. The model (a local linear trend with
-switching, Harrison & Stevens 1976; Durbin & Koopman 2012, ch. 3):
+uncertainty `u[k]` from the part's own fit (NaN: a part not measured). The model is a
+local linear trend with switching ([`TrackModel`][]: level, drift per part for tool
+wear, part-to-part scatter, level steps at declared tool changes (which also restart
+the wear) or undeclared ones, odd parts). [`track`][] filters and smooths a run into a
+[`Track`][] (one-step-ahead predictives from earlier parts only, level, probabilities
+that a part is odd or starts a step); with `model=None` it averages the fixed grid
+[`HYPER_GRID`][] (prior `GRID_LOG_PRIOR`) by the evidence of the parts before each part.
+[`fit_track_model`][] returns the grid's most probable model; [`fit_transfer`][] the
+finish-to-semifinish transfer coefficient. The arithmetic is in `_filter`.
 
-$$y_k = \\ell_k + \\varepsilon_k + \\eta_k,\\qquad \\eta_k \\sim N(0, u_k^2),\\quad
-\\varepsilon_k \\sim N(0, \\sigma_e^2) + [s_k = \\text{odd}]\\,N(0, \\sigma_o^2),$$
-
-$$\\ell_{k+1} = \\ell_k + d_k + w_k + J_{k+1},\\qquad d_{k+1} = d_k + v_k,\\qquad
-w_k \\sim N(0, \\sigma_\\ell^2),\\ v_k \\sim N(0, \\sigma_d^2),$$
-
-with $\\ell_k$ the level (the systematic deviation the program cuts, what a correction
-acts on), $d_k$ the drift per part (tool wear), $\\varepsilon_k$ the part-to-part
-scatter (`scatter_sd`, not carried over), $\\eta_k$ the measurement error, and a level
-jump $J \\sim N(0, \\sigma_s^2)$ (`step_sd`) at every declared tool change and, with
-prior probability `step_prob`, at any other part (an undeclared step: detection). A
-declared tool change also removes the wear of the old edge: a new insert starts
-unworn, $\\ell_t = \\ell_{t-1} + d\\,(1 - \\rho m) + J$ with $m$ the parts cut since the
-previous change or the run's first part (taken to be cut with a fresh edge) and $\\rho$
-= `wear_reset` (`_tracking_filter`). An odd part (a chip, a clamping error) has
-probability `outlier_prob` and adds $N(0, \\sigma_o^2)$ (`outlier_scale`) to its
-observation only: a two-component scale mixture, the heavy tail that keeps an odd
-part from being followed. The drift starts $N(\\mu_{d0}, \\sigma_{d0}^2)$
-(`drift0_mean`, `drift0_sd`); the level of part 0 is diffuse (or
-$N(0, \\sigma_{\\ell0}^2)$ with `level0_sd`).
-
-**Inference.** Given the indicators the model is linear Gaussian: Kalman filter and
-RTS smoother exactly. Over the indicators the exact posterior is a mixture of $3^n$
-Gaussians; it is collapsed after each part (`_tracking_filter`) to one Gaussian per
-*recent event*: none, the last part odd, or an undeclared step $j$ parts ago
-($j < $ `STEP_MEMORY` = 6). An odd part is thus judged with one part of hindsight (the
-next part is back on the level), a step with up to six (GPB2, Bar-Shalom & Li, is the
-special case of one part: it merged a step that the next part could not confirm
-into the level, widening its variance, and the filter then followed the scatter of
-the next parts; on runs without steps that cost about 0.4 % RMS, and against all
-$3^7$ indicator sequences of a 7-part run the longer memory gives the exact log
-evidence and step probabilities to < 0.01, where GPB2 was off by 0.12-0.15 and
-0.2-0.4, see the tests).
-We chose this over a Rao-Blackwellised particle filter because it is deterministic
-(replays are reproducible, tests exact), it is exact when no indicator is in doubt
-(the Gaussian model, `step_prob = outlier_prob = 0`), and it vectorises over runs and
-hyper-parameters at the cost of 24 Kalman updates per part; what it loses is the
-joint ambiguity of two odd events in a row, which at the prior probabilities used (a
-few %) is rare. The smoothed level uses the indicators' posterior probabilities as
-expected precisions (see `smoother`).
-
-**Hyper-parameters (empirical Bayes).** $\\sigma_e, \\sigma_\\ell, \\mu_{d0},
-\\sigma_{d0}, \\sigma_d, \\phi$, `outlier_prob` and `step_prob` are chosen on a fixed
-grid (`HYPER_GRID`, 540 points) by their marginal likelihood
-$\\prod_k p(y_k \\mid y_{<k})$ (the filter's predictive densities) times the grid's
-prior (`GRID_LOG_PRIOR`):
-
-- scatter 0.3 to 16 µm in 9 log steps, uniform;
-- level walk 0, 0.2 or 1 µm per part (0.45, 0.45, 0.1: thermal wander, and a level
-  that moves by about a micrometre a part);
-- drift: none (0.45); **wear** (0.35): flank wear only ever leaves material (+), so
-  its rate is half-normal with scale 0.3 µm/part, represented by the normal with the
-  same mean and sd, $N(0.24, 0.18^2)$ µm/part; a drift of **either sign** (0.05,
-  $N(0, 0.3^2)$: a thermal drift); a **new edge** (0.10): fast wear that slows,
-  $N(1.2, 0.8^2)$ µm/part decaying by $\\phi = 0.95$ per part with a rate walk of
-  0.05 µm/part per part (a power law of the parts on the edge is followed by it);
-  a **transient** of either sign (0.05: a warm-up), $N(0, 6^2)$ µm/part decaying by
-  $\\phi = 0.6$ (an exponential approach over a few parts);
-- odd parts 0.2 % or 5 % of the parts (0.8 / 0.2: odd parts are a priori rare);
-- undeclared steps 0.5 % or 2 % per part (1/2 each: how often an insert chips or is
-  changed unlogged is a property of the process, weighed by the evidence like the
-  odd-part rate; a run without steps moves to the lower rate, which follows the
-  scatter less).
-
-Issue 28 widened the grid of issue 17 (216 points: level walk 0 / 0.2, drift none /
-wear / either sign 1/2, 7/16, 1/16), which could not follow a process faster than
-its wear prior (on a warm-up and on a new edge's wear it was 7-10 % worse than the
-tuned EWMA; docs/feedback.md); the fast options cost about 0.5 % RMS on the slow
-scenarios.
-
-Why this prior and not a uniform one: a run of 50 parts hardly tells a small drift
-from none before part 15-20, so until then the prediction is the prior's mixture, and
-every model that is not the process costs RMS. The former grid gave 2/3 of its prior
-to drift models (one symmetric, wasting half its mass on negative wear, one with a
-wear rate wandering by 0.03 µm/part per part, which 50 parts cannot tell from a
-constant one) and a fixed 2 % step rate; on runs with neither drift nor steps that
-cost 3 % RMS over the true model, on slow wear 1.7 % (docs/feedback.md).
-
-`fit_track_model` returns the most probable point; `track` with `model=None` averages
-the grid (Bayesian model averaging) with weights from the parts before each part, so
-that every one-step-ahead predictive uses only earlier parts. The step size (10 µm)
-and the size of an odd part (40 µm) are prior knowledge of a turning centre, not
-estimated. The grid is finite and its smallest scatter is 0.3 µm: a run of one part
-gives a finite answer.
-
-**Transfer.** When the tracked values are semifinish deviations, the finish cut
-shows $\\beta$ times them (`fit_transfer`, from finished parts): the next-part
-predictive handed to a decision is $\\beta\\,\\ell$ with $u^2 = \\beta^2 v +
-u_\\beta^2 m^2$.
+The model, its prior grid and why: docs/feedback.md, "The model".
 """
 
 from __future__ import annotations

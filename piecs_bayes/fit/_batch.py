@@ -1,36 +1,18 @@
 r"""Batch fitting: every feature of many parts in one compiled call per feature kind.
 
-A capability study fits thousands of parts of one study. The per-part loop
-([`fit_profile`][]) dispatches one solve per feature and part; here all the
-`(part, feature)` problems that share a residual function and a point-count
-bucket form one *group*, solved by one jitted `jax.vmap` over problems in
-batches of a fixed size, so each group compiles once (and the persistent cache
-keeps it across runs). The solver is the lean batch kernel (`_batch_kernel`)
-with the engine's LM as the fallback (`solver="auto"`), or `jax.vmap` of
-[`solve_arrays`][] itself (`solver="lm"` etc.).
+[`fit_profiles`][] takes the probe points of many parts of one profile (part and feature
+of each point, ball centres in the part frame, mm, radius X) and returns a
+[`BatchFit`][]: every `(part, feature)` problem that shares a residual function and a
+point-count bucket is one group, solved by one jitted `jax.vmap` in batches of a fixed
+size (`BATCH`), so each group compiles once whatever the study size and chunking. Each
+problem is set up exactly as [`fit_feature`][] sets it up, so the results agree with the
+per-part loop to the solvers' precision (values to 1e-9 mm, standard errors to 1e-6
+relative, the same outlier flags and statuses); the probe sigma is pooled per part.
+Failures are reported, not hidden: [`BatchFit.failures`][], [`BatchFit.part_error`][].
+Parts are processed in chunks of `chunk_size` (`CHUNK_PARTS`); the kept arrays are
+~1 kB per problem.
 
-**Same numbers as the loop.** Each problem is set up exactly as
-[`fit_feature`][] sets it up: the same residual function
-(`feature_residuals(kind, free)`), nominal geometry passed as data, the same
-point-count bucket (`padded_size`), padding by the first point with weight
-zero, the same loss, scale and sigma, the same result statistics. The results
-agree with the loop to the solvers' precision (tested: values to 1e-9 mm,
-standard errors to 1e-6 relative, identical outlier flags and statuses).
-
-**Failures are reported, not hidden.** Every problem keeps its
-[`Status`][piecs_bayes.fit.Status]; [`BatchFit.failures`][] lists the parts and
-features that did not converge, and [`BatchFit.part_error`][] gives the message
-the loop would have raised for that part.
-
-**Batch size and memory.** Parts are processed in chunks of `chunk_size` parts
-(progress is reported per chunk); within a chunk each group is solved in batches
-of a fixed size (`BATCH`; fewer problems for buckets over 256 points, see
-`BATCH_POINTS`), the last one padded, so one compilation per group
-serves every study size and every chunking. The kept arrays are ~1 kB per
-problem (residuals, weights and the Jacobian are kept so that
-[`BatchFit.profile_fit`][] can rebuild any part's [`ProfileFit`][]): ~70 MB for
-10,000 parts of 7 features. For more, split the study (as
-`piecs_bayes.jobs.fit_study_batch` does) and keep only what you need.
+Groups, buckets, memory: docs/models/batch_fits.md.
 """
 
 from __future__ import annotations

@@ -1,36 +1,18 @@
 r"""A lean solver for batches of small feature fits (`solver="fast"`/`"auto"` of `fit_profiles`).
 
-[`solve_arrays`][] runs optimistix's general solvers through the robust stages
-(plain, Huber, the loss; `stages`). Under `vmap` a batch runs in lockstep and
-every step pays the general machinery (trust-region bookkeeping, a QR per step):
-on the feature models (2-3 parameters, 4-16 points) LM takes ~125 steps and
-~300 us per problem. This kernel minimises **the same staged objectives**
-$\tfrac12\sum_i s^2\rho(z_i)$ (same schedule `stages`, same scale re-estimation
-`losses.mad_sigma` between stages, same losses from `losses`) by Newton steps
-with the curvature $J^\top\mathrm{diag}(\max(\rho' + 2z\rho'', \kappa\rho'))J$
-(Gauss-Newton for the linear loss; exact on Huber's active set, so it finishes
-in a few steps), the $p \le 3$ normal equations solved in closed form, each
-step halved until the objective does not rise. With a given scale a repeated
-stage is the same problem started at its minimum and is skipped. The
-statistics of the result are then computed **with `_solve_core`'s formulas**
-(covariance with Huber's correction or the known-sigma sandwich, condition
-number, outlier flags, MAD residual sd, the stationarity check): ~6 steps and
-~15 us per problem.
+[`kernel_solver`][] returns a jitted solve with the signature and result ([`LsqArrays`][])
+of the batch engine's group solver. It minimises **the same staged objectives** as
+[`solve_arrays`][] (same stages, scale re-estimation and losses) by Newton steps with the
+$p \le 3$ normal equations in closed form, then computes the result's statistics **with
+`_solve_core`'s formulas**: ~6 steps and ~15 µs per problem against ~125 steps and
+~300 µs for LM under `vmap`. `tests/fit/test_batch.py` checks every field against the
+per-part loop; if `_solve_core`'s statistics change, change them here too. Named losses
+only (not a callable), residual functions with a fixed, small number of parameters, any
+point-count bucket. The statistics' SVDs run in slices of [`svd_batch`][] problems, so
+that jaxlib's batched LAPACK kernels stay on their calling thread (they deadlocked when
+split over XLA's intra-op threads: docs/xla_batched_svd_deadlock.md).
 
-`tests/fit/test_batch.py` checks every field against the per-part loop (the same
-minimum to ~1e-10 mm, 1e-6 standard errors). A problem the kernel does not
-solve is re-solved by the engine's LM under `solver="auto"`, so a failure
-carries the engine's status and message. If `_solve_core`'s statistics change,
-change them here too: the parity tests fail until they agree.
-
-It supports the named losses (not a callable) and residual functions with a
-fixed, small number of parameters (`feature_residuals`), and every point-count
-bucket (8 to 4,096 points and more: the cost per problem is linear in points).
-The Newton steps use no LAPACK; the statistics (two SVDs of the Jacobian) run in
-slices of `svd_batch` problems (`jax.lax.map`), small enough for jaxlib's batched
-LAPACK kernels to run on their calling thread: split over XLA's intra-op threads
-they deadlocked, the "hang in the nested while loops" that kept buckets over 32
-points on LM (`docs/xla_batched_svd_deadlock.md`).
+The kernel: docs/models/batch_fits.md.
 """
 
 from __future__ import annotations

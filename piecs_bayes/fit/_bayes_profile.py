@@ -1,24 +1,16 @@
 """Bayesian least squares of a whole profile with the study's error sources.
 
-Parameters: every feature's deviation (flat priors: the data decide) and one
-nuisance parameter per declared uncertainty source, each with its prior:
+[`fit_profile_bayes`][] (one part) and [`fit_profiles_bayes`][] (many parts, in
+lockstep) sample every feature's deviation (flat priors) together with one nuisance
+parameter per declared uncertainty source (`sources`: ball radius, pretravel, work
+offsets, axis scales, rotation, thermal, the probe sigma itself), each with its prior.
+The likelihood of the ball-centre residuals is Gaussian, or Student-t (`nu`) as the
+robust option; the log posterior ([`profile_log_posterior`][]) is one JAX function,
+sampled by independent ensembles started around the robust least-squares optimum, with
+the lockstep JAX sampler by default or with emcee; same moves, diagnostics and
+verdict. The result is a [`BayesProfileFit`][] (draws, diagnostics, `to_arviz`).
 
-| source | role in the model |
-|---|---|
-| ``ball_radius`` | calibration error of the ball radius: centre ``rb + d`` off the surface |
-| ``pretravel`` | trigger late along the approach direction: centre displaced by ``d * approach`` |
-| ``x_centre``, ``z_offset`` | errors of the work offsets (added to the study's transform) |
-| ``scale_x``, ``scale_z`` | axis scale errors |
-| ``rotation`` | small rotation of the probe frame |
-| ``thermal`` | a common expansion error, added to both scales |
-| ``repeatability`` | the probe sigma itself, estimated with its prior (else known) |
-
-Likelihood: Gaussian, or Student-t (``nu`` degrees of freedom) as the robust
-Bayesian option, of the ball-centre residuals. The log posterior is one JAX
-function, jitted and vectorised over walkers, sampled by independent ensembles
-started around the robust least-squares optimum: by default with the lockstep JAX
-sampler (the whole chain one jitted loop; `sampler="lockstep"`), or with emcee
-(`sampler="emcee"`); same moves, diagnostics and verdict.
+The model: docs/models/bayes_fit.md.
 """
 
 from __future__ import annotations

@@ -1,52 +1,18 @@
 r"""The ArviZ `InferenceData` of a Bayesian profile fit: what `posterior.nc` holds.
 
-[`BayesProfileFit.to_arviz`][piecs_bayes.fit.BayesProfileFit.to_arviz] builds it
-from the fit's draws and the data it was given ([`BayesData`][]):
-
-- `posterior`: one variable per deviation parameter, `offset`, `rotation`
-  (dims `(chain, draw, line_feature)`), `center_x`, `center_z`, `radius`
-  (`(chain, draw, arc_feature)`), and one per source, `(chain, draw)`:
-  `ball_radius`, `x_centre`, `z_offset`, `scale_x`, `scale_z`, `pretravel`,
-  `thermal`, `frame_rotation` (the source `rotation`) and `sigma`.
-- `sample_stats`: `lp`, the log posterior, `(chain, draw)`.
-- `observed_data`: `ball_centre`, the probe points used (part frame, the study's
-  transform, X as radius), `(point, axis)`, with the coordinates `feature` and
-  `line` (file line) along `point`.
-- `log_likelihood`: `ball_centre`, the log likelihood of each point,
-  `(chain, draw, point)`, same coordinates.
-- `prior`: draws of the sources' priors, `(chain, draw)` (one chain of
-  `PRIOR_DRAWS`); the deviations have flat (improper) priors and no draws.
-
-**chain** is one independent ensemble and **draw** its walkers' thinned
-trajectories one after the other (`Posterior.arviz_chains`), thinned (`thin`,
-about half the smallest autocorrelation time), so `az.rhat`, `az.ess` and
+[`BayesProfileFit.to_arviz`][piecs_bayes.fit.BayesProfileFit.to_arviz] builds it from
+the fit's draws and the data it was given ([`BayesData`][]): groups `posterior` (one
+variable per deviation parameter over `line_feature` or `arc_feature`, one per source,
+`frame_rotation` for the source `rotation`, `sigma`), `sample_stats` (`lp`),
+`observed_data` and `log_likelihood` (`ball_centre`, per probe point, with its feature
+and file line), `prior` (draws of the sources' priors). `chain` is one independent
+ensemble and `draw` its walkers' thinned trajectories, so `az.rhat`, `az.ess` and
 `az.summary` give the numbers the package reports. Every variable has a `units`
-attribute (`"mm"`, `"rad"`, `"1"` for a ratio); the run's settings (piecs_bayes
-version, sampler: `"piecs_bayes lockstep ensembles (jax)"` by default, `"emcee
-<version>"` when asked for; moves, steps, burn, thin, ensembles, walkers) and the
-prior settings (`prior_sources`, JSON `{source: spec}`) are in the attrs of the
-`InferenceData` and of its posterior group.
+attribute; the run's and the priors' settings are in the attrs. The log likelihood is
+float64 rounded to 24 significant bits (`LOG_LIKELIHOOD_BITS`, [`keep_bits`][]), so
+the file compresses; [`write_netcdf`][] writes it.
 
-**Why one variable per parameter, with a feature dim.** A variable holds one
-quantity in one unit: `offset[dia_24]` is in mm, `rotation[dia_24]` in rad. A
-single `deviation (feature, parameter)` array would mix mm and rad and need NaN
-where a line has no `radius` or an arc no `offset`; `az.summary` then prints NaN
-rows and `az.plot_trace` cannot draw a density of NaN. With one variable per
-parameter, `az.summary` has one row per fitted number (`offset[dia_24]`) and
-`az.plot_trace` one row of panels per parameter with the features overlaid
-(`compact=True`, their default) or one per feature (`compact=False`). Lines
-and arcs have different parameters, so each kind has its own feature dim
-(`line_feature`, `arc_feature`). The source `rotation` (of the probe frame) is
-stored as `frame_rotation`, apart from the lines' `rotation`.
-
-**log_likelihood** is the fit's own likelihood (Gaussian or Student-t) of each
-probe point's residual at each kept draw, `jax.vmap`-ed over draws; summed over
-points it is the log likelihood the sampler saw. It is stored as float64 rounded
-to float32's 24 significant bits (`LOG_LIKELIHOOD_BITS`; relative error
-$6\cdot10^{-8}$, far below what PSIS-LOO resolves): the cleared low bits compress
-away, so the demo's file stays under 25 MB, while ArviZ still computes in float64
-(`az.loo` on float32 arrays returns NaN when a point's log likelihood spans
-thousands, e.g. an outlier under a Gaussian likelihood). `az.loo(idata)` runs on it.
+The layout and why: docs/models/bayes_fit.md, "posterior.nc".
 """
 
 from __future__ import annotations

@@ -1,23 +1,16 @@
 r"""The probing measurement model shared by the Bayesian fit and GUM propagation.
 
-A trigger's residual is the signed distance of its ball centre, moved to the
-part frame by the machine transform with the error sources applied, from the
-deviated feature, minus the (corrected) ball radius. The sources:
+[`probe_residuals`][] gives every trigger's residual: the signed distance of its ball
+centre (machine frame, mm, radius X), moved to the part frame by the machine transform
+with the error sources applied, from the deviated feature, minus the (corrected) ball
+radius. `SOURCE_EFFECTS` names the sources (`x_centre`, `z_offset`, `scale_x`,
+`scale_z`, `rotation`, `thermal`, `ball_radius`, `pretravel`) and `SOURCE_UNITS` their
+units. A probe calibration's covariance enters as [`RadiusComponents`][]: independent
+unit components (`probe_cal_1`, ...), each moving the radius at the approach angle,
+correlated over every point through the calibration's coefficients
+(`is_calibration_source`, `CALIBRATION_SOURCE`).
 
-| source | effect |
-|---|---|
-| ``x_centre``, ``z_offset``, ``scale_x``, ``scale_z``, ``rotation`` | added to the transform |
-| ``thermal`` | a common expansion error, added to both axis scales |
-| ``ball_radius`` | added to the calibrated ball radius |
-| ``pretravel`` | the trigger comes late along the approach direction (into the material) |
-| ``probe_cal_1``, ... | a probe calibration's components: the radius at the approach angle |
-
-A calibrated probe (`io.ProbeCalibration`) has an effective radius $r(\theta)$ by
-approach angle; its points are corrected to $r_0$ when they are read, and the
-calibration's covariance enters here as `RadiusComponents`: independent unit
-components $z_j$, each moving the radius at $\theta$ by $z_j\,e_j(\theta)$, with
-$e_j = B(\theta) v_j$ ($B$ the Fourier basis, $v_j$ an eigenvector of the
-covariance), correlated over every point through the coefficients.
+Each source's effect: docs/models/bayes_fit.md, "The measurement model".
 """
 
 from __future__ import annotations

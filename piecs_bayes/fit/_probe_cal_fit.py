@@ -1,35 +1,17 @@
 r"""The probe calibration fit: the effective radius $r(\theta)$ from the recorded ball
 centres on a certified artefact (`piecs-bayes calibrate-probe`).
 
-A point $i$ (ball centre $p_i$, unit approach $a_i$, angle $\theta_i$) on the artefact
-with centre $c$ and certified size $S$ (the radius $R = D/2$, or a face pair's
-half-width $W/2$) has the residual
-
-- sphere (probed from outside around its equator in the XZ plane):
-  $e_i = |p_i - c| - (S + r(\theta_i))$; unknowns $c_x, c_z$;
-- diameter (outside, along $\mp X$) and face pair (outside, along $\mp Z$):
-  $e_i = -u_i \cdot (p_i - c) - (S + r(\theta_i))$, $u_i$ the axis of the approach
-  ($\pm X$ or $\pm Z$); unknown $c_x$ (diameter) or $c_z$ (faces);
-- ring (a bore, from inside along $\pm X$): $e_i = u_i \cdot (p_i - c) - (S - r(\theta_i))$.
-
-$r(\theta) = r_0 + \sum_k a_k \cos k\theta + b_k \sin k\theta$, orders $k$ in (2, 3);
-order 1 is the probe's offset, a shift of every centre that the free centre absorbs.
-
-$r_0$ and $S$ are not separable by the data (a larger sphere and a smaller ball give
-the same centres): the fit is conditional on the certified $S$, and its certificate's
-$u(S) = U/(2k)$ enters the covariance by the sensitivity of the estimate to $S$,
-$G = -(J^\top W J)^{-1} J^\top W\, \partial e/\partial S$:
-$\Sigma = \Sigma_{\text{fit}} + G\, \mathrm{diag}(u(S)^2)\, G^\top$. For one artefact
-$G$ is $\mp$ the unit vector of $r_0$: $\Sigma_{r_0 r_0} \mathrel{+}= u(R)^2$ and
-nothing else moves. `method="bayes"` samples the same model with $S$ a parameter
-under the normal prior of its certificate.
-
-**Identifiability.** The linearised model's design at the nominal, one row per
-distinct direction (columns: the free centre coordinates, $r_0$, $a_k$, $b_k$),
-scaled to unit columns, must have full rank and a condition number at most
-`COND_LIMIT`; otherwise the orders are refused, naming the directions the data
-have and what would separate them. ``orders="auto"`` takes the highest of
-``(2, 3)``, ``(2,)``, ``()`` that the directions separate.
+[`fit_probe_calibration`][] takes the artefact with its certificate (sphere, ring,
+diameter, optionally a face pair), the recorded ball centres (mm, part frame, radius X)
+and their approach directions, and returns a [`ProbeCalibration`][]: the coefficients
+of $r(\theta) = r_0 + \sum_k a_k \cos k\theta + b_k \sin k\theta$ ($k$ in 2, 3; order 1
+is the probe's offset, absorbed by the free centre), their covariance and dof. The fit
+is conditional on the certified size (not separable from $r_0$), whose certificate's
+uncertainty enters the covariance; `method="bayes"` samples the same model with the size
+under its certificate's prior. Orders the directions cannot separate are refused
+([`check_orders`][], `COND_LIMIT`); `"auto"` takes the highest of `AUTO_ORDERS` they
+separate. [`repeatability_check`][] warns when the residual sd does not fit the
+declared repeatability. The model and its coverage: docs/uncertainty.md, section 5.
 """
 
 from __future__ import annotations

@@ -1,30 +1,18 @@
 r"""The probe sigma behind every standard uncertainty of a part, and its degrees of freedom.
 
-A feature's own residuals say little about the probe's repeatability when the
-feature has few points: an arc from 5 points leaves 2 degrees of freedom, and
-its residual sd scatters by a factor of several around the truth (seen: 0.14 um
-against 1.5 um of probe noise, and errors of 4-5 stated u). So the package
-never scales a feature's covariance by that feature's own residuals. The rule
-(`probe_sigma`, documented in docs/uncertainty.md):
+A feature's own few residuals say little about the probe's repeatability, so no
+feature's covariance is scaled by them. The rule ([`probe_sigma`][] -> [`ProbeSigma`][];
+[`sigma_arrays`][] for many parts at once):
 
-1. **Known** (`known_sigma = true`): the declared repeatability $\sigma_0$,
-   $\nu = \infty$ (a normal coverage factor).
-2. **Default**: the residual variance **pooled over every feature of the part**
-   (robust fits: the inliers), $s_p^2 = \sum_f \mathrm{RSS}_f / \nu_p$ with
-   $\nu_p = \sum_f (n_f - p_f)$, combined with the declared repeatability as a
-   prior worth $\nu_0$ degrees of freedom (`repeatability_dof`, default 8: a
-   declared value good to about 25 %, JCGM 100 G.4.2): with $\sigma^2 \sim$
-   scaled-inv-$\chi^2(\nu_0, \sigma_0^2)$ the posterior of $\sigma^2$ is
-   scaled-inv-$\chi^2(\nu_0 + \nu_p, \tilde s^2)$,
-   $\tilde s^2 = (\nu_0\sigma_0^2 + \nu_p s_p^2)/(\nu_0 + \nu_p)$. The standard
-   uncertainties use $\tilde s$; intervals use Student-t quantiles with
-   $\nu = \nu_0 + \nu_p$ (the marginal of a mean under that posterior).
-   With `repeatability_dof = 0` (or no declared value) it is the pooled
-   residual variance alone, with $\nu_p$.
-3. Quantities that also carry Type B sources (ball radius, scales, centre
-   line, with $\nu = \infty$) get the Welch-Satterthwaite effective degrees of
-   freedom $\nu_\mathrm{eff} = u_c^4 / (u_A^4/\nu)$ (`effective_dof`,
-   JCGM 100 G.4.1) and the coverage factor $t_{p}(\nu_\mathrm{eff})$.
+1. **known** (`known=True`): the declared repeatability $\sigma_0$, $\nu = \infty$;
+2. **default**: the residual variance pooled over every feature of the part (robust
+   fits: the inliers), combined with $\sigma_0$ as a scaled-inverse-$\chi^2$ prior worth
+   $\nu_0$ degrees of freedom (`DECLARED_DOF` = 8); $\nu = \nu_0 + \nu_p$ for Student-t
+   intervals; with $\nu_0 = 0$ the pooled variance alone;
+3. quantities that also carry Type B sources get the Welch-Satterthwaite effective
+   degrees of freedom ([`effective_dof`][]) and the factor [`coverage_factor`][].
+
+The rule and why: docs/uncertainty.md, sections 1 and 2.
 """
 
 from __future__ import annotations

@@ -1,37 +1,18 @@
 """The adjusted finish-cut program: the part program rewritten to the compensated contour.
 
-**Assumptions** (say so to the user): the program is written in *part
-coordinates* (the program zero is the part zero of the study's profile, X
-measured from the spindle axis) and its finish cut programs the *part
-contour* itself, with G41/G42 (or G41.1/G42.1) taking care of the nose radius.
-The finish-cut blocks are then the moves made with compensation on (or every
-G1/G2/G3 move when the program has no compensation at all).
+Assumes the program is written in *part coordinates* and that its finish cut programs
+the *part contour* with G41/G42 (or G41.1/G42.1) taking care of the nose radius.
+:func:`map_blocks_to_profile` pairs the finish-cut blocks with the profile's features
+by geometry (within ``tol_mm``; an explicit ``mapping`` overrides) -> [`BlockMap`][];
+:func:`adjust_program` moves each mapped block's end point to the corresponding point of
+the adjusted feature and rewrites arcs' ``R`` or ``I``/``K`` -> [`ProgramAdjustment`][].
+Only coordinate words change, each in its own number format (rounded to its decimal
+places), X in the block's diameter / radius mode and units; every other line stays
+byte-identical. Refused (:class:`~piecs_bayes.errors.AnalysisError`): a change larger
+than ``max_correction_mm``, a block or feature that cannot be mapped, a result that
+gouges (a reversed move, an invalid arc, a gouge of the nose compensation).
 
-1. :func:`map_blocks_to_profile` pairs those blocks with the profile's
-   features **by geometry**: a G1 block whose end points lie on a line feature
-   (within ``tol_mm``), a G2/G3 block with the same centre and radius as an arc
-   feature and its end points on it. One feature may span several blocks. The
-   first and last compensated blocks may be approach / departure moves that
-   map to no feature (they only follow the contour's end points). An explicit
-   ``mapping`` (feature id -> line numbers, as a study file may give it)
-   overrides the geometric match for the features and lines it names.
-2. :func:`adjust_program` moves each mapped block's end point to the
-   corresponding point of the adjusted feature (a feature end goes to the
-   adjusted end; a point inside a feature keeps its fraction of length or
-   sweep) and rewrites the arc's ``R`` or ``I``/``K``. Only coordinate words
-   change, each in its own number format (decimal places, sign, leading
-   zero), X in the block's diameter / radius mode and units; a word the block
-   lacked is added after its last coordinate word. Every other line stays
-   byte-identical. It refuses (:class:`~piecs_bayes.errors.AnalysisError`) a
-   change larger than ``max_correction_mm``, a block or feature that cannot be
-   mapped, and a result that gouges (a move that reverses, an invalid arc, or
-   a gouge of the LinuxCNC-equivalent nose compensation when the nose radius
-   is known).
-
-Written numbers are rounded to each word's decimal places: with 3 decimals
-in mm a correction is applied to the nearest micrometre. A word written with
-fewer places than the program's usual ones (``X40.0`` in a program of
-``X24.000``) gets the usual places when its own cannot carry the correction.
+The assumptions and the mapping: docs/models/part_programs.md, "The adjusted program".
 """
 
 from __future__ import annotations

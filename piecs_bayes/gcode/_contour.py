@@ -1,32 +1,18 @@
 """The finish contour of a lathe program: the part's profile as the program cuts it.
 
 With tool-nose compensation on (G41/G42, G41.1/G42.1) a program describes the
-**part's edge**, not the tool's path; that edge is the nominal profile of the
-study. [`finish_contour`][] reads it from a [`GcodeProgram`][] (read with the
-package's own modal interpreter: G7/G8, G20/G21, G90/G91, G2/G3 by I/K or R):
+**part's edge**, not the tool's path; that edge is the nominal profile of the study.
+[`finish_contour`][] reads it from a [`GcodeProgram`][] and returns a
+[`FinishContour`][]: the moves of one compensated run strictly between its lead-in and
+its exit, one feature each ([`ContourSegment`][]: G1 a line, G2/G3 an arc with its
+exact centre), the material side from G41/G42 and the kind (`"external"` or
+`"internal"`) that follows. [`compensation_runs`][] lists the runs; a program with
+several needs `run=` (1-based). Refused (:class:`~piecs_bayes.errors.InputError` with
+the file, the line and why): no G41/G42 at all, a rapid inside the contour, a
+full-circle arc, several runs without `run`, a run without features, a contour that
+encloses no area with the spindle axis.
 
-- **the run**: the compensated moves from the G41/G42 that switches
-  compensation on up to G40 (or the program's end). A program with several
-  runs needs `run=` (1-based) and is otherwise refused naming each run's lines;
-- **lead-in and exit**: the run's first move (the one that switches
-  compensation on, `Motion.entry`: it brings the nose onto the contour from the
-  air) and its last move (the one before G40 or the program end: it leaves the
-  part) are **not features**. Every move strictly between them is one feature:
-  G1 -> a line, G2/G3 -> an arc with its exact centre (the programmed centre
-  moved onto the chord's perpendicular bisector, so that start and end are
-  equidistant from it). A zero-length move gives no feature;
-- **the material side**: G42 puts the nose right of travel (drawing frame: z
-  right, x up), so the material is left and the outward normal right (geometry
-  side -1); G41 the reverse (+1); a negative G41.1/G42.1 diameter swaps them.
-  The kind follows: ``"external"`` when that side is the one
-  `profile_side(chain, internal=False)` gives for the chain, else ``"internal"``.
-
-Refused (:class:`~piecs_bayes.errors.InputError` with the file, the line and
-why): no G41/G42 at all (the path is the tool's, not the part's); a rapid (G0)
-between lead-in and exit; a full-circle arc; several runs without `run`; a run
-with no feature between lead-in and exit; a contour that encloses no area with
-the spindle axis (a lone face: its material side cannot be told). Threads
-(G32/G33/G33.1/G76) and non-planar words (Y, J) are refused by the reader.
+The rules: docs/models/part_programs.md, "The finish contour".
 """
 
 from __future__ import annotations

@@ -1,21 +1,18 @@
-"""Fanuc's ``DPRNT`` statement: its format, read from a program, and the line it prints.
+r"""Fanuc's ``DPRNT`` statement: its format, read from a program, and the line it prints.
 
 ``DPRNT[X#5061[44]*Z#5062[44]]`` prints, on one line: the text ``X``, the value of
-``#5061`` with 4 integer digits and 4 decimals, a blank for ``*``, the text ``Z``,
-the value of ``#5062``. What :func:`dprnt_value` prints for ``[ab]`` (parameter PRT
-= 0, leading zeros printed as blanks):
+``#5061`` with 4 integer digits and 4 decimals, a blank for ``*``, the text ``Z``, the
+value of ``#5062``. :func:`parse_dprnt` reads the format ([`DprntFormat`][], whose
+``render`` prints a line); :func:`dprnt_value` prints one value with ``[ab]`` (parameter
+PRT = 0): a field of ``a + 1`` characters holding the integer digits right-aligned
+without leading zeros (one ``0`` for an integer part of zero) with ``-`` directly
+before them when negative, then ``.`` and exactly ``b`` decimals (Python's
+``f"{v:.{b}f}"``; a value that rounds to zero has no sign). So ``[44]`` prints ``12.5``
+as ``"   12.5000"``. A value with more than ``a`` integer digits is refused (the
+control would print a wrong number). Lines end with ``"\n"``; the control codes that
+``POPEN`` / ``PCLOS`` send are not written.
 
-- a field of ``a + 1`` characters for the sign and the integer digits, right
-  aligned: the digits without leading zeros (one ``0`` when the integer part is
-  zero), a ``-`` directly before them for a negative value, blanks in front;
-- then ``.`` and exactly ``b`` decimals (rounded, half to even on the binary value:
-  Python's ``f"{v:.{b}f}"``); a value that rounds to zero has no sign.
-
-So ``[44]`` prints ``12.5`` as ``"   12.5000"`` and ``-31.07`` as ``"  -31.0700"``,
-10 characters for every value below 10,000 in size; a value with more than ``a``
-integer digits is refused (the control would print a wrong number). Each DPRNT
-line ends with ``"\\n"`` (ISO code, LF as end of block); the control codes and
-``%`` that ``POPEN`` / ``PCLOS`` send are not written.
+The gauging programs and their files: docs/models/gauging.md.
 """
 
 from __future__ import annotations

@@ -1,36 +1,18 @@
 """The moves of a gauging program, read the way the control reads them.
 
-`read_gauge_program` (and `gauge_moves`, its moves) interprets a LinuxCNC or a
-Fanuc-style gauging program (the ones `gauging_program` writes, and hand-edited
-ones) into :class:`GaugeMove` s: every rapid, feed move and probe move, in **mm,
-X a radius, work coordinates** (the frame of the finish program: the part frame),
-with the modal state in effect on its line.
+:func:`read_gauge_program` (and :func:`gauge_moves`, its moves) interprets a LinuxCNC or
+a Fanuc-style gauging program (the ones `gauging_program` writes, and hand-edited ones)
+into a [`GaugeProgram`][] of :class:`GaugeMove` s: every rapid, feed move and probe move,
+in **mm, X a radius, work coordinates**, with the modal state in effect on its line.
+``controller=None`` reads a program as Fanuc when it has ``G31``, ``POPEN``, ``PCLOS``
+or ``DPRNT``, else as LinuxCNC. LinuxCNC: ``G38.2`` / ``G38.3`` (modal), G7/G8,
+``(PROBEOPEN name)``; Fanuc: ``G31`` (one shot), ``POPEN`` / ``DPRNT[...]`` / ``PCLOS``,
+X as `x_mode` says, every coordinate with a decimal point. Refused, with the control's
+words and the line (:class:`~piecs_bayes.errors.InputError`): a probe move in feed per
+revolution, with compensation on, with zero feed or length, an unknown code or letter,
+two codes of one modal group, axis words without a motion mode.
 
-**Dialect.** ``controller=None`` reads a program as Fanuc when it has ``G31``,
-``POPEN``, ``PCLOS`` or ``DPRNT``, else as LinuxCNC.
-
-- **LinuxCNC**: probe moves ``G38.2`` (error without contact) and ``G38.3`` (no
-  error), in modal group 1 like G0/G1 (a later line with only axis words probes
-  again); ``G7``/``G8`` X words diameters/radii (default G8, or `x_mode`);
-  ``(PROBEOPEN name)`` ... ``(PROBECLOSE)`` around the moves whose trip is written.
-- **Fanuc** (G code system with G90/G91 absolute/incremental and G98/G99 feed
-  per minute/per revolution, as `gauging_program` writes): ``G31`` (skip, one
-  shot), ``POPEN`` / ``DPRNT[...]`` / ``PCLOS`` (each DPRNT is kept with the G31
-  before it); whether X words are diameters is a control setting, the `x_mode`
-  argument (default ``"diameter"``). An axis, arc or radius word without a decimal
-  point is refused: Fanuc reads ``X25`` as 25 least input increments (0.025 mm)
-  unless parameter DPI says otherwise.
-
-Both: G18 (only), G20/G21, G90/G91, G0 G1 G2 G3 (the end point only), G40 G41 G42
-(G41.1/G42.1 on LinuxCNC), G43/G49, G54-G59, G61/G64, G96/G97, G4, M0-M9 M30
-(LinuxCNC also M60-M68 and M100-M199: the probe's switch; on Fanuc any M code, the
-machine builder's), N, T, S, D, H, P, Q, L words; the first word ``O`` on Fanuc.
-
-**Refused, with the control's words and the line** (an
-:class:`~piecs_bayes.errors.InputError`): a probe move in feed per revolution
-(G95 / G99) or with cutter compensation on, with zero feed, of zero length
-(LinuxCNC: shorter than 0.254 mm / 0.01 in), a G or M code or a letter the reader
-does not know, two codes of one modal group, axis words without a motion mode.
+The dialects, word by word: docs/models/gauging.md, "Reading a gauging program".
 """
 
 from __future__ import annotations

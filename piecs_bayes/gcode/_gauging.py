@@ -1,26 +1,18 @@
 """The gauging program: a probe plan's moves as a program the control runs.
 
-Two dialects, one structure:
+:func:`gauging_program` writes the plan's path (part frame, mm, radius X) as a program
+in one of `CONTROLLERS`, one comment block per point under the traceability header:
 
-- **LinuxCNC** (`"linuxcnc"`): G18, G7 or G8 (the study's X mode: X words are
-  diameters or radii), G20/G21 (the study's units), G90, G40, G94 (probing is
-  refused in G95 and with compensation on); the probe selected as a tool
-  (``T<n> M6 G43``), the spindle stopped (``M5``), the probe switched on by the
-  configured words (`probe_on`; none by default: say so in `[plan] probe_on`, e.g.
-  ``M64 P0``), ``(PROBEOPEN <file>)`` ... ``(PROBECLOSE)`` around the probe moves,
-  which are ``G38.2`` toward the surface at the probing feed: LinuxCNC writes one
-  line per touch, in order (X a radius even in G7); and ``(LOGOPEN,<log file>)`` ...
-  ``(LOGCLOSE)`` with ``(LOG,<k> #5070 #5061 #5063)`` after each probe move: the
-  point's number, the success flag and the trip's X (radius) and Z, 6 decimals.
-- **Fanuc** (`"fanuc"`): the same moves with ``G31`` (skip) at ``G98`` (feed per
-  minute), ``POPEN`` / ``DPRNT[X#5061[44]*Z#5062[44]]`` after each skip / ``PCLOS``,
-  the probe as ``T<nn><nn>``; X words as the study's X mode says (a Fanuc control's
-  diameter programming is a setting, not a G-code).
+- **LinuxCNC** (`"linuxcnc"`): G18, G7/G8 (the study's X mode), G20/G21, G90, G40, G94;
+  the probe as a tool (``T<n> M6 G43``), the spindle stopped, the probe switched on by
+  the configured words (`probe_on`; none by default, and the program says so), probe
+  moves ``G38.2`` inside ``(PROBEOPEN <file>)`` ... ``(PROBECLOSE)``, and a
+  ``(LOG,<k> #5070 #5061 #5063)`` line after each inside ``(LOGOPEN,<log file>)``.
+- **Fanuc** (`"fanuc"`): the same moves with ``G31`` (skip) at ``G98``, ``POPEN`` /
+  ``DPRNT[X#5061[44]*Z#5062[44]]`` after each skip / ``PCLOS``, the probe as
+  ``T<nn><nn>``, X words as the study's X mode says (a control setting there).
 
-One commented block per point names its feature, fraction and nominal contact
-point. Every move is a rapid (``G0``) except the probe moves; the safe path and the
-order come from the plan (`piecs_bayes.jobs.plan_study`). The traceability comment
-block (version, study SHA-256) heads the program.
+Every move but the probe moves is a rapid. The programs: docs/models/gauging.md.
 """
 
 from __future__ import annotations

@@ -1,23 +1,17 @@
 """Part programs (RS274 / ISO 6983, lathe dialect): lossless lexing and writing.
 
-A program is kept as its lines, each with its exact text, its line ending and
-the spans of its words and comments. Writing an unchanged program gives back
-the same bytes (line endings, whitespace, case and odd bytes included). An
-edited block keeps its words' order, its comments and each word's number
-format (sign, leading zero, decimal places): only the changed words differ.
+[`lex_gcode`][] keeps a program as its lines ([`GcodeText`][] of [`SourceLine`][]), each
+with its exact text, its line ending and the spans of its words ([`Word`][]) and
+comments ([`Comment`][]): writing an unchanged program gives back the same bytes.
+[`edit_line`][] changes words of a block keeping their order, its comments and each
+word's number format ([`format_number`][]): only the changed words differ;
+[`read_text_lossless`][] reads a file without losing a byte. A line holds words (a
+letter and a number), comments (`( ... )`, `;` to the end) or only `%`; anything else
+(parameters `#`, expressions, block delete `/`, an unclosed comment) is an
+:class:`~piecs_bayes.errors.InputError` naming the file, the line and its text. Which
+words mean what is :func:`~piecs_bayes.gcode.read_gcode`'s (module ``_modal``).
 
-What the lexer accepts on a line:
-
-- words: a letter and a number (``X12.5``, ``g1``, ``Z-.25``; blanks may sit
-  between the letter and the number);
-- comments: ``( ... )`` anywhere and ``;`` to the end of the line;
-- a line holding only ``%`` (tape start / end marker).
-
-Anything else (parameters ``#``, expressions ``[...]``, block delete ``/``,
-a letter without a number, an unclosed comment) is an
-:class:`~piecs_bayes.errors.InputError` naming the file, the line and its
-text. The meaning of the words (which G codes are understood) is checked by
-:func:`~piecs_bayes.gcode.read_gcode` (module ``_modal``).
+What the lexer accepts: docs/models/part_programs.md, "Lexing".
 """
 
 from __future__ import annotations

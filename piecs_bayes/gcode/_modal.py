@@ -1,35 +1,18 @@
 """Modal interpretation of a lathe part program: words -> moves in the XZ half-plane.
 
-The reader keeps the full modal state the way LinuxCNC's interpreter does and
-turns every motion block into a :class:`Motion` in **millimetres, radius X**
-(``(x, z)`` points, the package convention), with its source line.
+[`read_gcode`][] (a file, bytes kept exactly) and [`parse_gcode`][] (a text) keep the
+full modal state the way LinuxCNC's interpreter does and return a [`GcodeProgram`][]
+whose every motion block is a [`Motion`][] in **millimetres, radius X** (``(x, z)``
+points), with its source line, the nose-compensation settings and the tool words in
+force. Anything not understood (threads, other planes, Y/J words, an unknown code) is
+an :class:`~piecs_bayes.errors.InputError` with the file, line number and text: nothing
+is dropped silently. Modal defaults are LinuxCNC's (G8 radius mode, G90, G91.1,
+no motion mode until G0-G3) with G18 assumed; `units`, `diameter_mode` and `start`
+set the state before the program says otherwise. G2 is clockwise and G3
+counter-clockwise in the drawing frame (z right, x up), as LinuxCNC's ``ARC_FEED``
+shows.
 
-Understood (anything else is an :class:`~piecs_bayes.errors.InputError` with
-the file, line number and text; nothing is dropped silently):
-
-| words | meaning |
-|---|---|
-| G0 G1 G2 G3 (+ G80) | rapid, feed, arcs CW / CCW; arcs by ``R`` or ``I``/``K`` |
-| G7 / G8 | X words are diameters / radii (``I`` is always a radius offset) |
-| G18 | XZ plane (the only plane; G17/G19 are refused) |
-| G20 / G21 | inch / mm |
-| G90 / G91, G90.1 / G91.1 | absolute / incremental axes, arc centres |
-| G40 G41 G42 (D: tool), G41.1 G42.1 (D: diameter, L: orientation) | nose compensation |
-| G4 P, G43 (H) G49, G54-G59, G61 G61.1 G64 (P Q), G94 G95 G96 G97 | passed through |
-| M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30, T F S N | passed through (T/M6 tracked) |
-| O (first word), ``%`` lines, ``( )`` and ``;`` comments | kept |
-| G32 G33 G33.1 G76 (threads), G17 G19 (other planes), G93, Y/J words | refused, named |
-
-Modal defaults are LinuxCNC's (radius mode G8, G90, incremental arc centres
-G91.1, no motion mode until G0-G3), except the plane: G18 is assumed for a
-lathe. ``units`` sets the units before any G20/G21 (default mm). The tool
-starts at ``start`` (default ``(0, 0)``, where LinuxCNC's standalone ``rs274``
-starts).
-
-**G2/G3 in the drawing frame**: the drawing frame has z to the right and x up,
-which is the XZ plane seen from +Y in a right-handed XYZ frame; G2 is
-clockwise and G3 counter-clockwise in that frame (``Arc(ccw=True)`` for G3),
-as LinuxCNC's ``ARC_FEED`` output shows (checked against ``rs274``).
+The words understood: docs/models/part_programs.md, "The modal interpreter".
 """
 
 from __future__ import annotations

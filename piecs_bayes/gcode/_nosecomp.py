@@ -1,60 +1,18 @@
 """Tool-nose (cutter) radius compensation for lathe programs: G41/G42/G40 resolved.
 
-The programmed contour is the part's edge; the **nose centre** runs one nose
-radius ``r`` away from it, left (G41) or right (G42) of travel in the drawing
-frame (z right, x up; G2 clockwise, G3 counter-clockwise there). The machine
-positions the tool's **controlled point**, which for a lathe insert is the
-imaginary tip: ``controlled = centre + tip_offset(orientation, r)``.
+The programmed contour is the part's edge; the nose centre runs one nose radius away
+from it, left (G41) or right (G42) of travel in the drawing frame, and the machine
+positions the controlled point, the imaginary tip (`tip_offset` by LinuxCNC's lathe
+orientations). [`compensated_path`][] gives the controlled point's moves
+([`PathMove`][], mm, radius X) of a [`GcodeProgram`][], with `corner="arc"` (default:
+what LinuxCNC does, `_nosecomp_arc`) or `corner="extend"` (the 1969 bisector rule,
+`_nosecomp_extend`); a gouge or a LinuxCNC quirk the rule cannot follow raises
+`AnalysisError` naming the block. [`nose_compensate`][] rewrites the program without
+compensation (lines outside it byte-identical) and refuses G41/G42 on the material side
+(`infer_kind`, `check_comp_sides`); [`correct_radius_error`][] corrects an already
+compensated path for a nose radius that differs from plan.
 
-Tip offsets follow LinuxCNC's documented lathe orientations (checked against
-``rs274``):
-
-| orientation | tip offset ``(dx, dz)`` from the nose centre |
-|---|---|
-| 0, 9 | ``(0, 0)`` (a mill cutter / the nose centre itself) |
-| 1 | ``(-r, +r)`` |
-| 2 | ``(-r, -r)`` |
-| 3 | ``(+r, -r)`` |
-| 4 | ``(+r, +r)`` |
-| 5 | ``(0, +r)`` |
-| 6 | ``(-r, 0)`` |
-| 7 | ``(0, -r)`` |
-| 8 | ``(+r, 0)`` |
-
-(x radial, radius; z along the spindle.) A negative radius swaps the side.
-G41/G42 take the radius (half the ``D`` diameter) and orientation ``Q`` from
-the tool table (the ``D`` word, or else the tool in the spindle); G41.1/G42.1
-carry ``D`` (diameter) and ``L`` (orientation) in the block.
-
-Two corner rules:
-
-- ``corner="arc"`` (default) gives what LinuxCNC does (module
-  ``_nosecomp_arc``, written from its documented behaviour and checked against
-  ``rs274``): an arc about the programmed corner at convex corners, offset
-  curves trimmed at concave ones, the entry move ending one radius off its
-  programmed end normal to it, and the gouge checks (entry move ending within
-  one radius of its start, concave corner the nose cannot fit or reach, arc
-  radius not larger than the nose radius on its inside).
-- ``corner="extend"`` follows the 1969 IBM cutter-compensation disclosure: at
-  a junction of two compensated moves the correction lies on the bisector of
-  the normals with length ``r / cos(alpha / 2)`` (``alpha`` the turn angle),
-  i.e. the offset curves' intersection; where an uncompensated move meets a
-  compensated one the correction is ``r`` along the compensated move's
-  normal; at the far end of an uncompensated move it is zero. The entry
-  (G41/G42) move and the move after G40 are the uncompensated ones. Where an
-  arc meets a line or an arc, the junction is the intersection of the offset
-  curves nearest that bisector point (so arcs stay arcs); a junction turning
-  by less than 0.01 rad is tangent and gets the plain normal offset. The
-  entry move must be straight. A move that the offsets would reverse, or an
-  arc whose offset radius is not positive, is a gouge.
-
-LinuxCNC quirk refused here: after an *arc* entry move with a lathe tip
-offset, a next move that does not leave it smoothly makes LinuxCNC issue a
-full-circle arc (or stop); that program raises AnalysisError instead (program
-a straight entry move). Other differences are listed in ``_nosecomp_arc``.
-
-:func:`correct_radius_error` applies the same rules to an already
-compensated path when the real radius differs from the planned one.
+The corner rules, tip offsets and gouges: docs/models/nose_compensation.md.
 """
 
 from __future__ import annotations

@@ -1,75 +1,18 @@
-"""Nose-radius compensation by the arc-corner rule (``corner="arc"``).
+"""Nose-radius compensation by the arc-corner rule (``corner="arc"``): what LinuxCNC does.
 
-Written for piecs_bayes from the documented behaviour of G40/G41/G42 (RS274/NGC
-and LinuxCNC user manuals: the tool keeps left / right of the programmed
-contour, compensation starts on the next move and ends on the move after G40)
-and from running LinuxCNC's ``rs274`` interpreter as a black box on probe
-programs. No interpreter source code was consulted.
+Written for piecs_bayes from the documented behaviour of G40/G41/G42 (RS274/NGC and
+LinuxCNC user manuals) and from running LinuxCNC's ``rs274`` interpreter as a black box
+on probe programs. No interpreter source code was consulted.
 
-Geometry is done on the **nose centre** in the drawing frame (z right, x up;
-``(x, z)`` in mm, x a radius); the controlled point is the nose centre plus
-:func:`tip_offset`. ``s = +1`` for G41 (left of travel), ``-1`` for G42; ``r``
-is the nose radius.
+[`ArcCornerComp`][] runs one program on the **nose centre** (``(x, z)`` in mm, x a
+radius; the controlled point adds :func:`tip_offset`): compensated lines move ``r`` to
+the tool side and arcs change radius by ``r``; smooth corners (``|turn| <
+TANGENT_TURN``) join, convex ones get an arc of radius ``r`` about the programmed corner,
+concave ones are trimmed; the entry move ends ``r`` off its end. A gouge raises
+:class:`~piecs_bayes.errors.AnalysisError` naming the block. The output agrees with
+``rs274`` move for move, except where ``rs274`` misbehaves (refused here).
 
-## The rule
-
-- A compensated line moves ``r`` to the tool side; an arc keeps its centre and
-  its radius grows or shrinks by ``r`` (shrinks with the nose inside: left of a
-  G3, right of a G2). An arc's radius is the distance from its centre to its
-  programmed end, as the output arc (centre and end) will run.
-- **Corners** between compensated moves, by the turn ``a`` from the travel
-  direction at the end of one move to the start of the next:
-  ``|a| < TANGENT_TURN`` is **smooth** (the first move ends at its own offset
-  end, the next starts there); a turn away from the tool side is **convex**
-  (the first move ends at its offset end, then an arc of radius ``r`` about the
-  programmed corner, or a straight rapid when the next move is a rapid, reaches
-  the next move's offset start); a turn toward the tool is **concave** (both
-  offset curves are trimmed at their intersection nearest the programmed
-  corner; from a line onto an arc the intersection is taken with the offset of
-  the circle through the arc's start and moved radially onto the arc's offset,
-  which only matters for I/K arcs whose two radii differ slightly).
-- **Entry** (the first move after G41/G42) must end farther than ``r`` from
-  where it starts. A straight entry runs from where the tool is to the point
-  ``r`` off its programmed end, normal to it; for the next corner it counts as
-  the line through that point parallel to the entry. An arc entry becomes the
-  arc from its programmed start to that point, tangent there to the offset
-  circle (centre on the normal through the end); with a tip offset the tool
-  first moves straight by the tip offset.
-- **Exit**: the last compensated move ends at its own offset end; the move
-  after G40 runs from there to its programmed end.
-- A compensated move of zero length is passed on where the corner it sits in
-  is resolved.
-
-## Gouges (AnalysisError naming the block)
-
-- an entry move ending within ``r`` of its start; an arc not larger than ``r``
-  with the nose inside (on their own block);
-- a concave corner whose offset curves do not meet (on the second move);
-- a concave corner whose offsets meet beyond the end of the first move or
-  before the start of the second (the nose cannot reach into it), a line its
-  corners would make run backwards, an arc whose sweep they would reverse (on
-  the block that fixes the move's end: the next move, or G40).
-
-## Tolerances
-
-- ``TANGENT_TURN = 0.05`` rad (2.86 deg), the smooth-corner limit. Bisection
-  with ``rs274`` on convex and concave corners gave this value for nose radii
-  0.1-5 mm in mm and inch programs; with it the output agrees with LinuxCNC
-  move for move, and the jump left at a smooth corner stays below ``0.05 r``.
-- ``_SLACK = 1e-9`` (mm, or rad on arcs): a trim or stretch this small at a
-  concave corner is round-off, not a gouge.
-- ``_EPS`` (module ``_nosecomp_base``): relative zero for determinants, sweeps.
-
-## Where ``rs274`` differs
-
-- After an arc entry with a tip offset (orientations 1-8), anything but a
-  smooth next move makes ``rs274`` emit a full-circle arc or stop with an
-  internal error: we raise AnalysisError on the entry block.
-- ``rs274`` lets a compensated move run backwards when the junction after it is
-  smooth, or when it follows the entry move; we raise.
-- ``rs274`` refuses an arc that a smooth junction starts behind its offset start
-  by more than 0.001 of its length unit read as radians (0.0254 rad in mm
-  programs); that is not a gouge and we accept it.
+The rule, gouges, tolerances, differences: docs/models/nose_compensation.md.
 """
 
 from __future__ import annotations

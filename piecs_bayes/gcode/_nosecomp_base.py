@@ -2,21 +2,15 @@
 behind a G41/G42 request, and plane geometry on ``(x, z)`` points (drawing
 frame: z right, x up; angles counted counter-clockwise from +z).
 
-Lathe tool orientations (LinuxCNC's documented convention), as the offset
-``(dx, dz)`` from the nose centre to the controlled point (the imaginary tip):
+:func:`tip_offset` is the offset ``(dx, dz)`` from the nose centre to the controlled
+point (the imaginary tip) by LinuxCNC's documented lathe orientations 0-9;
+:func:`resolve_setting` the side, radius and orientation of a G41/G42 (tool table)
+or G41.1/G42.1 (in the block) request, [`UniformNose`][] one nose radius for every tool.
+``_EPS = 1e-12`` is the relative size under which a determinant, a distance between
+centres or a sweep counts as zero: far below any length a program can state, far
+above float64 round-off of millimetre coordinates.
 
-| orientation | ``(dx, dz)`` | orientation | ``(dx, dz)`` |
-|---|---|---|---|
-| 0, 9 | ``(0, 0)`` | 5 | ``(0, +r)`` |
-| 1 | ``(-r, +r)`` | 6 | ``(-r, 0)`` |
-| 2 | ``(-r, -r)`` | 7 | ``(0, -r)`` |
-| 3 | ``(+r, -r)`` | 8 | ``(+r, 0)`` |
-| 4 | ``(+r, +r)`` | | |
-
-``_EPS = 1e-12`` is the relative size under which a determinant, a distance
-between centres or a sweep counts as zero (parallel lines, concentric circles,
-an arc trimmed away): far below any length a program can state, far above
-float64 round-off of millimetre coordinates.
+The orientation table: docs/models/nose_compensation.md.
 """
 
 from __future__ import annotations

@@ -1,22 +1,15 @@
 """LinuxCNC's standalone interpreter ``rs274`` as a reference: run it, read its canon.
 
-``rs274`` (Debian package ``linuxcnc-uspace``) interprets a program and prints
-the canonical machining calls::
+:func:`run_rs274` runs ``rs274 -t tool.tbl -g program.ngc canon.txt`` (Debian package
+``linuxcnc-uspace``; FileNotFoundError when it is not installed, see
+:func:`rs274_path`) on a program file or text and returns an [`Rs274Result`][]: the
+canonical moves ([`CanonMove`][], via :func:`parse_canon`) in mm, radius X, ``(x, z)``
+points. Two facts of this standalone build matter: tool-table lengths are read as
+**inches** whatever the program's units, and canonical coordinates are printed in the
+program's current units with 4 decimals; G3 is ``ARC_FEED`` rotation +1 in the drawing
+frame.
 
-    rs274 -t tool.tbl -g program.ngc canon.txt
-
-``-g`` runs in batch mode; ``-t`` gives the tool table (needed for G41/G42,
-and without it an interpreter error does not reach the exit status). No INI
-file is needed. Two facts about this standalone build matter here:
-
-- tool-table lengths are read as **inches** (a ``D0.02`` tool has a 0.01 in =
-  0.254 mm nose radius in G20 and G21 programs alike);
-- canonical coordinates are printed in the program's current units
-  (``USE_LENGTH_UNITS``) with 4 decimals, X as a radius; in the XZ plane
-  ``ARC_FEED(z_end, x_end, z_centre, x_centre, rotation, ...)`` with
-  rotation +1 counter-clockwise in the (z right, x up) drawing frame (G3).
-
-:func:`run_rs274` converts everything to mm, radius X, ``(x, z)`` points.
+How to run it and read its canon: docs/models/nose_compensation.md, "The reference".
 """
 
 from __future__ import annotations

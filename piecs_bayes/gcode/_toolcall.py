@@ -1,23 +1,15 @@
 """Which tool cuts the finish pass: the T word in force on the finish-cut blocks.
 
-**What a T word means** (read by :func:`tool_call`):
+:func:`tool_call` reads a T word into a [`ToolCall`][] (tool and wear offset number):
+in a program without M6 (*turret style*: Fanuc, Haas, Okuma and other Fanuc-style
+lathes) ``Tttoo`` is tool ``tt`` with wear offset ``oo`` (``T0202``, ``T202``: tool 2,
+offset 2; ``T2``: tool 2, offset 2; more than four digits refused); in a program with
+M6 (*M6 style*: LinuxCNC) the number is the tool as written and the offset number is
+the tool number. :func:`finish_cut_tools` gives the tools in force on the finish-cut
+blocks ([`FinishCutTools`][]), with `why` when the blocks could not be mapped and the
+compensated moves stood in.
 
-- *Turret style*, a program without any M6 (Fanuc, Haas, Okuma and other Fanuc-style
-  lathe controls): the T word indexes the turret and applies the offsets at once.
-  ``Tttoo`` is tool (station) ``tt`` with wear offset ``oo``: ``T0202`` and ``T202``
-  are tool 2, wear offset 2; ``T0211`` is tool 2, wear offset 11; ``T0200`` cancels
-  the offsets (offset 0). A T word of one or two digits (``T2``) is tool 2 with its own
-  offset 2. More than four digits is refused (controls with six-digit T codes differ).
-- *M6 style*, a program with M6 (LinuxCNC): the T word selects the tool that the next
-  M6 loads, and its number is the tool number as written (``T2 M6`` and ``T0002 M6``
-  are tool 2; ``T202 M6`` is tool 202). LinuxCNC keeps one tool-table entry per tool,
-  which ``G10 L1 P<tool>`` sets: the offset number is the tool number.
-
-LinuxCNC reads ``T0202`` as tool 202 unless a Fanuc-style T remap is configured; its
-``lathe-fanucy`` sample configuration reads the pairs the other way round (``T0201``:
-tool 1 with the wear entry 10002 of its tool table), so only ``Tnnnn`` with equal pairs
-(``T0202``) means the same there. A turret-style program is read here the Fanuc way
-(Fanuc: G10 ``P`` 1-64 addresses wear offsets, 10000 + n geometry offsets).
+What a T word means on each control: docs/models/part_programs.md, "Which tool".
 """
 
 from __future__ import annotations

@@ -1,24 +1,17 @@
-"""Where a probe ball can touch a turned profile, and how far a path keeps from it.
+r"""Where a probe ball can touch a turned profile, and how far a path keeps from it.
 
-A touch-trigger probe's ball of radius $r$ touches the feature at a nominal contact
-point $q$ with its centre at $c = q + r\\,n$ ($n$ the outward normal). A contact point
-is **usable** when
+A ball of radius $r$ touches a feature at a nominal contact point $q$ with its centre at
+$c = q + r\,n$ ([`ball_centres`][]). [`probe_window`][] gives the usable fractions
+`(t0, t1)` of a feature (the longest run of them; None when the ball cannot touch it
+anywhere): the ball at contact keeps `end_clearance` from every other feature and does
+not cut into its own, the point lies $r$ + `end_clearance` from a sharp or free end and
+`end_clearance` from a tangent junction, and (with `standoff`) the probe move's start
+keeps as far from every feature. [`point_distance`][] and [`path_distance`][] measure
+how far a point or a straight move keeps from a profile's polylines
+([`feature_polyline`][]): exact between segments, arcs sampled with a chord error under
+0.1 µm (`CHORD_ERROR_MM`).
 
-1. the ball at contact keeps at least `end_clearance` from every other feature of
-   the profile (a concave corner or a groove: the ball would touch the neighbour
-   first), and does not cut into the probed feature itself (a concave arc smaller
-   than the ball, a groove narrower than the ball: no point is usable);
-2. it lies at least $r$ + `end_clearance` (along the feature) from an end that is a
-   sharp junction or a free end of the profile (an edge: burrs, chamfers, and a
-   ball that slides off), and at least `end_clearance` from a tangent junction
-   (the ball touches one feature there; rule 1 still holds on a concave fillet).
-
-3. (with a `standoff`) the start of the probe move, that far out along the normal,
-   keeps as far from every feature (its approach is clear of the stock).
-
-`probe_window` gives the usable fractions of a feature, the longest run of them:
-a probe plan places its points there. Distances are exact between segments;
-arcs are sampled as polylines with a chord error under 0.1 µm.
+The rules: docs/models/gauging.md, "Where a ball can touch a profile".
 """
 
 from __future__ import annotations

@@ -6,10 +6,8 @@ travel" and positive rotations are meant in that frame.
 
 A feature is a frozen, hashable description of the nominal geometry (so it can
 be a static argument to ``jax.jit``); its deviation is a small float64 vector:
-
-- line: ``(e, theta)``: shift along the outward normal, rotation (rad, CCW)
-  about the nominal mid-point;
-- arc: ``(dcx, dcz, dr)``: centre shift and radius change.
+line ``(e, theta)``: shift along the outward normal, rotation (rad, CCW) about the
+nominal mid-point; arc ``(dcx, dcz, dr)``: centre shift and radius change.
 
 Zero deviation means "as drawn". Signed distances are positive outside the
 material (along the outward normal). ``tolerance`` limits the normal deviation (mm);

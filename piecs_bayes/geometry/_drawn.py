@@ -1,22 +1,18 @@
-"""Tolerances as drawn: the coordinate a feature's tolerance is given on.
+r"""Tolerances as drawn: the coordinate a feature's tolerance is given on.
 
-A drawing tolerances a diameter on the diameter (Ø24 ±0.01), a face or a shoulder
-on its axial position Z, a taper or an arc as a profile along the surface normal.
-The fit and the decisions work on the *normal deviation* $\\delta$ (along the
-outward normal $n$, + outward); a tolerance *as drawn* is on
+A drawing tolerances a diameter on the diameter, a face on its axial position Z, a taper
+or an arc along the surface normal; the fits and decisions work on the *normal
+deviation* $\delta$ (along the outward normal $n$, + outward). [`drawn_scale`][]:
 
 | `tolerance_on` | form                 | drawn deviation            |
 |----------------|----------------------|----------------------------|
-| `"diameter"`   | cylinder             | $2\\,\\mathrm{sign}(n_x)\\,\\delta$ |
-| `"radius"`     | cylinder             | $\\mathrm{sign}(n_x)\\,\\delta$   |
-| `"length"`     | face, shoulder       | $\\mathrm{sign}(n_z)\\,\\delta$   |
-| `"normal"`     | taper, arc           | $\\delta$                  |
+| `"diameter"`   | cylinder             | $2\,\mathrm{sign}(n_x)\,\delta$ |
+| `"radius"`     | cylinder             | $\mathrm{sign}(n_x)\,\delta$   |
+| `"length"`     | face, shoulder       | $\mathrm{sign}(n_z)\,\delta$   |
+| `"normal"`     | taper, arc           | $\delta$                  |
 
-so that the drawn deviation is `drawn_scale(feature)` $\\times\\,\\delta$ (on a bore,
-$n_x < 0$: more material is a smaller diameter). The limits are converted once,
-when the feature is made: `Feature.tolerance` holds the limits of $\\delta$,
-[`drawn_limits`][] gives them back as drawn. A decision is invariant to scaling the
-deviation and its limits together.
+`Feature.tolerance` holds the limits of $\delta$ (converted once, [`normal_limits`][]);
+[`drawn_limits`][] gives them back as drawn. Why: docs/formats.md, "Tolerances as drawn".
 """
 
 from __future__ import annotations

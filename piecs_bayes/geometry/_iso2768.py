@@ -1,30 +1,17 @@
 """ISO 2768-1 general tolerances: the limit deviations a drawing implies where it
 gives no tolerance of its own ("general tolerances ISO 2768-m").
 
-Two tables, by nominal size (mm) and tolerance class f (fine), m (medium),
-c (coarse), v (very coarse); every value is a symmetric deviation ±t (mm):
+[`iso2768_tolerance`][] gives the symmetric limit deviation ±t (mm) of a nominal size
+(mm) for a tolerance class f (fine), m (medium), c (coarse) or v (very coarse), from
+Table 1 (`table="linear"`: a diameter, a length, an axial position) or Table 2
+(`table="radius"`: radii of curvature and chamfer heights), as a [`GeneralTolerance`][]
+with the range it was taken from. A range "a-b" holds sizes above a up to and including
+b (3 mm is in 0.5-3). Where the standard gives no value (a size below 0.5 mm or above
+4000 mm, class f above 2000 mm, class v up to 3 mm) it uses the **nearest range that
+has one** and says so in `note`, rather than refusing: the value is a general tolerance
+to be replaced by the drawing's, and a study needs one.
 
-**Table 1, linear dimensions** (a diameter, a length, an axial position):
-
-| class | 0.5-3 | >3-6 | >6-30 | >30-120 | >120-400 | >400-1000 | >1000-2000 | >2000-4000 |
-|---|---|---|---|---|---|---|---|---|
-| f | 0.05 | 0.05 | 0.1 | 0.15 | 0.2 | 0.3 | 0.5 | (none) |
-| m | 0.1 | 0.1 | 0.2 | 0.3 | 0.5 | 0.8 | 1.2 | 2 |
-| c | 0.2 | 0.3 | 0.5 | 0.8 | 1.2 | 2 | 3 | 4 |
-| v | (none) | 0.5 | 1 | 1.5 | 2.5 | 4 | 6 | 8 |
-
-**Table 2, radii of curvature and chamfer heights**:
-
-| class | 0.5-3 | >3-6 | >6 |
-|---|---|---|---|
-| f, m | 0.2 | 0.5 | 1 |
-| c, v | 0.4 | 1 | 2 |
-
-A range "a-b" holds sizes above a up to and including b (3 mm is in 0.5-3).
-Where the standard gives no value (a size below 0.5 mm or above 4000 mm, class
-f above 2000 mm, class v up to 3 mm) [`iso2768_tolerance`][] uses the **nearest
-range that has one** and says so in `note`, rather than refusing: the value is
-a general tolerance to be replaced by the drawing's, and a study needs one.
+The two tables: docs/models/geometry.md.
 """
 
 from __future__ import annotations

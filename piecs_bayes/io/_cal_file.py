@@ -1,35 +1,17 @@
 r"""The calibration file of `piecs-bayes calibrate-probe` (TOML): the probe, the artefact
 with its certificate, and the probe files of the calibration run.
 
-```toml
-[calibration]
-probe = "T9 Renishaw OMP40"   # name or tool number
-units = "mm"                  # the only unit a calibration is made in
-feed = 200.0                  # mm/min, the probing feed (optional)
-date = "2026-11-30"           # ISO date (optional)
-orders = "auto"               # or [], [2], [2, 3]
-repeatability = 0.0015        # declared probe sigma (mm)
-repeatability_dof = 8         # what the declared value is worth (optional)
-sigma = "estimated"           # or "known": the covariance from the declared sigma
-[artefact]
-kind = "sphere"               # sphere | ring | diameter
-diameter = 25.0004            # certified (mm)
-expanded_uncertainty = 0.0005 # U of the certificate (mm)
-coverage_factor = 2.0         # k of the certificate
-centre = [0.0, -40.0]         # nominal centre (x radius, z), mm
-[artefact.face]               # ring or diameter only: two parallel faces, probed along Z
-width = 10.0002
-expanded_uncertainty = 0.0004
-coverage_factor = 2.0
-[[probe_files]]
-file = "cal_points.csv"       # relative to this file
-format = "csv"                # any of PROBE_FORMATS
-x_mode = "radius"             # csv only: how X is written (default "diameter")
-plan = "plan.json"            # the control formats: the plan the program was made from
-```
+[`read_calibration_file`][] reads `[calibration]` (probe, units: mm only, feed, date,
+orders, declared repeatability and its dof, `sigma = "estimated"` or `"known"`),
+`[artefact]` (`kind` one of `ARTEFACT_KINDS`, certified diameter with its expanded
+uncertainty and coverage factor, nominal centre; `[artefact.face]` for a face pair) and
+`[[probe_files]]` (file relative to the calibration file, format, X mode, plan) into a
+[`CalibrationFile`][] with its [`CalibrationArtefact`][] and its probe files
+([`CalibrationProbeFile`][]); [`parse_orders`][] reads `orders`. Every key is checked:
+an unknown key, a wrong type, a unit other than mm, a size without its certificate's
+uncertainty are refused (`InputError`), naming the file and the key.
 
-Every key is checked: an unknown key, a wrong type, a unit other than mm, a size
-without its certificate's uncertainty are refused, naming the file and the key.
+The file, key by key: docs/formats.md, "Probe calibration".
 """
 
 from __future__ import annotations

@@ -1,31 +1,17 @@
 """Probe files as controls write them, read against the probe plan that made them.
 
-A gauging program written by `piecs-bayes plan` probes the plan's points in order;
-the control writes one line per touch. Line *k* of such a file is point *k* of the
-plan (`plan.json`): its feature and approach direction come from the plan, its
-ball centre from the file. Formats (`[study] probe_format`):
+A gauging program written by `piecs-bayes plan` probes the plan's points in order and
+the control writes one line per touch, so line *k* of its file is point *k* of the plan:
+its feature and approach direction come from the plan ([`read_plan_points`][] ->
+[`PlanPoints`][]), its ball centre from the file. [`read_control_probe`][] reads one of
+`PROBE_FORMATS` but `"csv"`: `"linuxcnc"` (the PROBEOPEN file, X a radius even in G7),
+`"linuxcnc-log"` (the LOGOPEN file with each point's number and success flag) or
+`"fanuc-dprnt"` (the DPRNT lines, X as the control's X mode says), and returns
+`ProbeData` in mm, radius X, the work frame. Refused, naming the file, the line, the
+planned point and the value: a line that is not the format, more or fewer points than
+the plan, a failed probe, a point farther than `limit_mm` from its planned ball centre.
 
-- ``"linuxcnc"``: the file of ``(PROBEOPEN name)``: ``X Y Z A B C U V W`` of the
-  ball centre at the trip, nine numbers of ``%f`` (6 decimals, always ``.``),
-  separated by spaces; X a **radius** even in G7; the work frame of the gauging
-  program; the program's units (the plan's).
-- ``"linuxcnc-log"``: the ``(LOGOPEN,name)`` file of the plan's LinuxCNC program,
-  one ``(LOG,<k> #5070 #5061 #5063)`` line per probe: the point's number in the
-  plan, the success flag (1: tripped), X (a radius) and Z, 6 decimals; a flag of 0
-  is a failed probe, a number out of order a touch skipped or repeated.
-- ``"fanuc-dprnt"``: the lines of ``DPRNT[X#5061[44]*Z#5062[44]]``: ``X`` and a
-  number, ``Z`` and a number (spaces between, leading zeros printed as spaces);
-  X a diameter or a radius as `[probe] x_mode` says (a control setting).
-
-A plain PROBEOPEN file is read a column at a time (`_fastcsv`, X and Z; the other
-seven columns are checked to hold number characters only); any other file line by
-line, which names the first line that is not the format.
-
-Refused, naming the file, the line, the planned point and the value: a line that is
-not the format; more or fewer points than the plan; a failed probe (the position
-equals the programmed target: the move ran to its end without a trip); a point
-farther from its planned ball centre than `limit_mm` (a point of another feature,
-a skipped or repeated touch shifts every line after it).
+The formats: docs/models/gauging.md, "The control's file", and docs/formats.md.
 """
 
 from __future__ import annotations

@@ -1,29 +1,18 @@
 """Vectorised reading of plain CSV rows: the fast path of the probe reader.
 
-The row-by-row reader (`_probe`) splits the text at ``"\\n"``, drops trailing
-``"\\r"``, skips blank lines and lines starting with ``#``, reads each other
-line with ``csv.reader``, strips every cell and converts numeric cells with
-``float``. This module reads the same lines with NumPy, a whole column at a
-time, and *vouches* only for the rows it can read exactly as that reader
-would, without an error and to the same values:
+The row-by-row reader (`_probe`) reads each line with ``csv.reader`` and converts
+numeric cells with ``float``. This module reads the same lines with NumPy, a whole
+column at a time ([`split_lines`][] -> [`Lines`][], [`read_rows`][] -> [`Rows`][]), and
+*vouches* only for the rows it can read exactly as that reader would, without an error
+and to the same values: a plain line (ASCII, no quote, no control character, as many
+commas as the header) whose cells are non-empty strings (at most `MAX_STRING`
+characters; a feature id of the study where one is required) or numbers
+``[+-]digits[.digits][e[+-]digits]`` read to exactly Python's ``float`` of the cell.
+Every other line that holds a row is handed back to the row reader, in file order, with
+its line number: its checks and messages are the only ones, so a bad cell is named
+exactly as before.
 
-- a **plain line**: ASCII, no control character (a trailing ``"\\r"`` aside),
-  no quote, not starting with a space, as many commas as the header has;
-- its **cells**, spaces stripped: a non-empty string (of at most
-  `MAX_STRING` characters, a feature id of the study where one is required),
-  or a number ``[+-]digits[.digits][e[+-]digits]`` (a finite automaton over
-  the cell's bytes, one byte position at a time for every row). Without an
-  exponent, with a mantissa ``m < 2**53`` and at most 22 fraction digits
-  (every probe coordinate), its value is ``m / 10**digits``: one correctly
-  rounded division of two exact doubles, so exactly Python's ``float`` of the
-  cell (Clinger's fast path); any other number cell of that form is given to
-  ``float`` itself, and vouched for when finite.
-
-Every other line that holds a row (a quoted cell, a tab, ``nan``, a
-non-numeric cell, a wrong number of cells, an indented row, a longer cell...)
-is handed back to the row reader, in file order, with its line number: its
-checks and messages are the only ones, so a bad cell is named exactly as
-before, and rows this module declines are read as before.
+Which lines and cells, and why the values are exact: docs/models/probe_files.md.
 """
 
 from __future__ import annotations

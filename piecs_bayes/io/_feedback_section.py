@@ -1,26 +1,17 @@
 """The study file's `[feedback]` table: feedback over a production run
 (`piecs-bayes feedback`, `jobs.feedback_study`; docs/formats.md).
 
-```toml
-[feedback]
-tool_changes = ["part21"]          # parts cut first after a tool change (part ids)
-policies = ["none", "ewma", "bayes"]   # default: every policy
-finish_files = ["finish/*.csv"]    # finished-part measurements (post-process loop)
-characteristic = "mid"             # default: capability.characteristic, else "mid"
-inspect_every = 5                  # every 5th part measured (default 1: every part)
-delay = 1                          # a result arrives 1 part late (default 0)
-```
+`read_feedback` checks and returns the table as a read-only mapping: `tool_changes`
+(part ids cut first after a tool change), `policies` (of `FEEDBACK_POLICIES`; default
+every policy), `finish_files` (finished-part measurements: patterns resolved against
+the study's folder, each must match a file), `characteristic` (`"mid"`, `"start"`,
+`"end"`; default the capability's, else `"mid"`), `inspect_every` (every E-th part of
+the run measured; default 1) and `delay` (a result arrives that many parts late;
+default 0). Every key is optional (`FEEDBACK_KEYS`); errors name the file, the key path
+and the value. The part ids of `tool_changes` are checked against the run's parts by the
+job, which knows them.
 
-`inspect_every` says that the probe files hold every `inspect_every`-th part of the
-production run (the parts between are cut and not measured); `delay` that a part's
-result arrives after `delay` more parts are cut. Both shape the tracking (a part not
-measured is a prediction step), the replay (a correction is decided when a result
-arrives and held until the next) and the next-part recommendation.
-
-Every key is optional and checked here (type, known names; `finish_files`
-resolved against the study's folder, each pattern must match a file); the part
-ids of `tool_changes` are checked against the run's parts by the job, which
-knows them. Errors name the file, the key path and the value.
+The table and what each key does: docs/formats.md, "Finished-part measurements".
 """
 
 from __future__ import annotations
@@ -30,7 +21,7 @@ from types import MappingProxyType
 
 from ._reader import Reader
 
-#: the replayed policies (`compensate._feedback.POLICIES`; a test keeps the two equal)
+#: the replayed policies (`feedback.POLICIES`; a test keeps the two equal)
 FEEDBACK_POLICIES = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma", "bayes")
 
 #: the keys of `[feedback]` (for the schema check of the whole study file)

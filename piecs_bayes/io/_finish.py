@@ -1,31 +1,18 @@
 """Finished-part measurements (the post-process loop of `piecs-bayes feedback`).
 
-A CMM-style CSV per part (or several parts in one file with a ``part`` column):
-one row per feature, the finished part's deviation at the feature's
-characteristic point and its standard uncertainty.
+[`read_finish_csv`][] reads a CMM-style CSV per part (or several parts in one file with
+a ``part`` column): one row per feature, the finished part's deviation at the feature's
+characteristic point and its standard uncertainty (required columns ``feature,
+deviation, u``; optional ``part``, default the file name without extension, and ``on``:
+``drawn``, default, on the feature's ``tolerance_on``, or ``normal``). Lengths are in the
+study's units and are returned as normal deviations in mm ([`FinishData`][],
+`geometry.drawn_scale`). [`read_finish_files`][] concatenates files in the given order.
+Every bad cell is an `InputError` naming the file, line, column and value (a missing,
+unknown or repeated column, a wrong cell count, an empty or non-finite cell,
+``u <= 0``, an unknown feature or ``on``, a part and feature measured twice, both
+places named, a file without data rows).
 
-```csv
-# Finished part 21, CMM 2026-11-30 (lengths in the study's units)
-part,feature,deviation,u
-part21,dia_24,0.0012,0.0008
-part21,face_end,-0.0007,0.0006
-```
-
-Required columns ``feature, deviation, u``; optional ``part`` (default: the file
-name without extension) and ``on``: ``drawn`` (default; the deviation as the
-drawing tolerances it, on the feature's ``tolerance_on``: a diameter's error on
-the diameter, a face's on Z, a taper's or an arc's along the normal, as a CMM
-reports it) or ``normal`` (the normal deviation δ along the outward normal, +
-outside the material, as the fits report it). Lengths are in the study's units
-and are converted here to normal deviations in mm (`geometry.drawn_scale`).
-A header row is required; blank lines and lines starting with ``#`` are
-comments.
-
-Every bad cell is an `InputError` naming the file, line, column and value: a
-missing, unknown or repeated column, a row with the wrong number of cells, an
-empty cell, a number that is not one or not finite, ``u <= 0``, an unknown
-feature, an unknown ``on``, a (part, feature) measured twice (both places
-named), a file without data rows.
+The format, with an example: docs/formats.md, "Finished-part measurements".
 """
 
 from __future__ import annotations

@@ -1,29 +1,18 @@
 """Plausibility of probe points before any fit: no number from data that could not be right.
 
-A fit always returns numbers, even for points a metre off their feature, for a
-file read with the wrong X mode or units, or for a profile declared external
-that was probed as a bore. So before fitting, every point is checked against
-its nominal feature (part frame, ball centre one ball radius outside the
-surface):
+A fit always returns numbers, even for points a metre off their feature, for a file read
+with the wrong X mode or units, or for a profile probed on the wrong side. So
+[`check_probe_data`][] checks every point against its nominal feature (part frame, ball
+centre one ball radius outside the surface) before fitting: its distance from where it
+should be (`max_distance`, default 3 x (`max_correction` + the feature's largest
+tolerance), at least `FLOOR_MM` = 0.5 mm so that a chip stays an outlier for the robust
+fit; [`feature_limits`][]), how far it lies beyond either end of its feature
+(`max_outside`), and duplicates ([`drop_duplicates`][]: `"drop"` keeps the first and
+warns with a [`PlausibilityWarning`][], `"error"` refuses). A point beyond a limit is an
+`InputError` naming file, line, feature and distance, with the likely cause found by
+trying the usual setup mistakes on every point of the part.
 
-- **distance**: the ball centre's distance from where it should be,
-  $|d - r_b|$, must not exceed `max_distance` (default: 3 x (`max_correction` +
-  the feature's largest tolerance), at least 0.5 mm so that a chip under the
-  stylus stays an outlier for the robust fit): a correction larger than
-  `max_correction` is refused anyway, so a point far beyond it is an error of
-  setup, not a deviation;
-- **position along the feature**: a point may lie at most `max_outside`
-  (default: the same limit) beyond either end of its feature;
-- **duplicates**: a trigger repeated with identical coordinates (a file
-  written twice, rows copied) would count twice and shrink every uncertainty
-  by $\\sqrt 2$: `duplicates = "drop"` (default) keeps the first and warns,
-  `"error"` refuses the file.
-
-A point beyond a limit is an `InputError` naming file, line, feature, the
-distance and the likely cause, found by trying the usual setup mistakes on
-every point of the part (X read as a diameter or a radius, inch and mm, the
-Z work offset's sign, the profile's side of the material, the arc's
-direction) and reporting the one that makes the points plausible.
+The limits and the causes tried: docs/formats.md, "Plausibility, before any fit".
 """
 
 from __future__ import annotations

@@ -1,29 +1,18 @@
 r"""A probe calibration: the effective ball radius by approach direction, and its file.
 
 A touch-trigger probe triggers after a pretravel that depends on the direction of
-approach, so the distance from a recorded ball centre to the surface (the
-**effective radius**) is a function of the approach angle $\theta$ in the XZ plane:
+approach, so the distance from a recorded ball centre to the surface (the **effective
+radius**) is $r(\theta) = r_0 + \sum_k a_k \cos k\theta + b_k \sin k\theta$, orders $k$
+in `ALLOWED_ORDERS` (2, 3), with $\theta$ = [`approach_angle`][] of the unit approach
+direction $a$ (the ball's travel into the surface, part frame, radius X):
+$\operatorname{atan2}(a_z, a_x)$. [`ProbeCalibration`][] is what `piecs-bayes
+calibrate-probe` writes (``probe_cal.json``, `CALIBRATION_FORMAT`) and what `[probe]
+calibration` reads ([`read_probe_calibration`][]): the coefficients, their covariance
+and dof; `ProbeCalibration.radius` gives $r(\theta)$ and `ProbeCalibration.components`
+the covariance as independent components, one systematic source correlated over all
+points ([`lobe_basis`][]: the Fourier basis).
 
-$$r(\theta) = r_0 + \sum_{k \in \text{orders}} a_k \cos k\theta + b_k \sin k\theta .$$
-
-$\theta$ is the angle of the unit approach direction $a = (a_x, a_z)$ (the ball's
-travel into the surface, part frame, radius X) from $+X$ toward $+Z$:
-$\theta = \operatorname{atan2}(a_z, a_x)$; a diameter probed from outside is
-approached at 180 degrees, a face probed from $+Z$ at -90 degrees.
-
-The first order ($a_1 \cos\theta + b_1 \sin\theta$) is a shift of every recorded
-centre by the same vector: the probe's position offset, which an artefact's free
-centre absorbs and the machine's offsets carry. It is never part of $r(\theta)$;
-the orders are 2 and 3 at most (a kinematic seat's three lobes are order 3).
-
-`ProbeCalibration` is what `piecs-bayes calibrate-probe` writes (``probe_cal.json``)
-and what `[probe] calibration` reads: the coefficients $c = (r_0, a_k, b_k, \dots)$,
-their covariance $\Sigma$ and dof. In a part's fit each point is corrected to the
-calibrated radius at its approach (`ProbeCalibration.radius`), and $\Sigma$ is one
-systematic source correlated over all points through the coefficients: with
-$\Sigma = V \Lambda V^\top$, the independent components $z_j \sim N(0, \lambda_j)$
-move the radius at $\theta$ by $z_j\, (B(\theta) V)_j$ (`ProbeCalibration.components`),
-so every propagation that handles independent sources carries it exactly.
+The model and its use by every fit: docs/uncertainty.md, section 5.
 """
 
 from __future__ import annotations

@@ -1,25 +1,18 @@
 """The user's jobs: what the CLI and the notebooks call.
 
-Each job composes the numerical layers (fit, compensate, uncertainty, gcode) on a
-study and returns immutable data; `piecs_bayes.export` renders and writes it.
-
-- one part (`load_probe_data`, `fit_study`, `bayes_study`, `compensate_study`,
-  `toolpath_uncertainty`, `adjust_study_program`), its decision table
-  (`decide_study`) and its machine data (`error_spec`, `tool_offsets`);
-- the main job end to end (`run_job` -> `JobResults`);
-- many parts: batch fits (`fit_study_batch`), capability studies in chunks,
-  in-process or on Dask (`capability_study`, `capability_values`), path
-  uncertainty of every part (`path_uncertainty_batch`);
-- the coverage check of the uncertainty model on simulated parts
-  (`coverage_check`) and the simulated data sets (`piecs_bayes.simulate`);
-- `options`: the one translation of a study into the layers' settings;
-- `init_study`: a new study whose profile is the finish contour of a part program;
-- `simulate_gauge`: a gauging program run on a simulated machine against a truth
-  part, and the probe file the control would write;
-- `calibrate_probe`: a probe's effective radius r(theta) from a calibration file
-  (`simulate_calibration`, `write_calibration_sim`: a simulated run with its truth);
-- `apply_route`: the one route of the correction to the machine (program, error
-  spec or tool offset; never two).
+Each job composes the numerical layers on a study and returns immutable data;
+`piecs_bayes.export` renders and writes it. One part: `load_probe_data`, `fit_study`,
+`bayes_study`, `compensate_study`, `toolpath_uncertainty`, `adjust_study_program`, its
+decision table (`decide_study`) and machine data (`error_spec`, `tool_offsets`); the
+main job end to end (`run_job` -> `JobResults`). Many parts: batch fits
+(`fit_study_batch`), capability studies in chunks, in-process or on Dask
+(`capability_study`, `capability_values`), path uncertainty of every part
+(`path_uncertainty_batch`), feedback over a run (`feedback_study`). Also: the coverage
+check of the stated uncertainty (`coverage_check`), the one translation of a study into
+the layers' settings (`fit_options`, `bayes_options`, ...), a study from a part program
+(`init_study`), the probe plan (`plan_study`), a probe's r(theta) (`calibrate_probe`)
+and the one route of the correction to the machine (`apply_route`: program, error spec
+or tool offset; never two). The simulated data sets are `piecs_bayes.simulate`'s.
 """
 
 from .. import _config  # noqa: F401  (float64 before any JAX array)

@@ -1,19 +1,17 @@
 """The one route of a correction to the machine: [`apply_route`][].
 
-A job's correction can reach the machine three ways, and each carries all of it:
-the adjusted part program (only the finish-cut words of this part's program
-change), the error specification (native tables, or LinuxCNC joint compensation
-tables that act on every move of a joint) and the tool-offset update (a constant
-wear offset of one tool, for every program that uses it). Loading two of them
-applies the correction twice, so a study chooses one (`[compensation] apply`), or
-the command line does (`--apply`), or the default does:
+A job's correction can reach the machine three ways, and each carries all of it: the
+adjusted part program, the error specification (native tables, or LinuxCNC joint
+compensation tables that act on every move of a joint) and the tool-offset update (a
+constant wear offset of one tool). Loading two of them applies the correction twice,
+so [`apply_route`][] returns the one route (of `APPLY_ROUTES`) with why: the command
+line's (`--apply`), else the study's (`[compensation] apply`), else the default:
+`"program"` when the study names a part program (the most local route: this program
+only, nothing left loaded in the controller, the diff shows every change, arcs and
+tapers exact), `"errspec"` otherwise (it still carries the shape of the error, a
+correction per position, where a tool offset carries only a constant).
 
-- `"program"` when the study names a part program: the most local route (this
-  program only, nothing left loaded in the controller afterwards, the diff shows
-  every change) and the only one that carries arcs and tapers exactly;
-- `"errspec"` otherwise: without a program it is the route that still carries the
-  shape of the error (a correction per position), where a tool offset carries
-  only a constant.
+The routes, as the user chooses them: docs/formats.md, "Study file".
 """
 
 from __future__ import annotations

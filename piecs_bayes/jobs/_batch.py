@@ -1,29 +1,18 @@
 r"""Capability studies over many parts: batch fits in chunks, in-process or on Dask.
 
-[`capability_study`][piecs_bayes.jobs.capability_study] needs, per part and
-feature, the characteristic (normal deviation at a nominal point) and its
-linearised uncertainty. This module computes them chunk by chunk:
+[`capability_study`][piecs_bayes.jobs.capability_study] needs, per part and feature, the
+characteristic (normal deviation at a nominal point) and its linearised uncertainty.
+[`capability_values`][] computes them chunk by chunk: [`fit_study_batch`][] fits a chunk
+with [`fit_profiles`][piecs_bayes.fit.fit_profiles] (parts whose fit fails are refitted
+by plain least squares, parts that fail both are left out, with the loop's notes), and
+`uncertainty.characteristic_arrays` evaluates every part of a feature at once.
+[`path_uncertainty_batch`][] propagates every part's fit covariance to its adjusted
+tool path. Without a scheduler the chunks run in this process; with `scheduler=`
+(`"tcp://host:8786"` or a `distributed.Client`) each chunk is a task on an existing Dask
+cluster, with identical results (bit for bit on the same CPU type). Joint fits
+(`fit.free_transform`) are not batched: `capability_study` keeps its per-part loop.
 
-1. [`fit_study_batch`][] fits a chunk of parts with
-   [`fit_profiles`][piecs_bayes.fit.fit_profiles] (one compiled call per feature
-   kind and point-count bucket). Parts whose fit fails are refitted with plain
-   least squares, and parts that fail both are left out, with the same notes as
-   the per-part loop.
-2. `uncertainty.characteristic_arrays` evaluates the characteristic and
-   $u_\text{fit} = \sqrt{g^\top C g}$ for all parts of a feature at once (the
-   same model and Jacobian as `uncertainty.feature_characteristic`);
-   [`path_uncertainty_batch`][] propagates every part's fit covariance to its
-   adjusted tool path (vertices and normal offsets) the same way.
-
-Without a scheduler the chunks run one after the other in this process. With
-`scheduler="tcp://host:8786"` (or a `distributed.Client`) each chunk is a task on
-an existing Dask cluster; the workers need the same piecs_bayes installed. A
-worker process runs one chunk at a time (JAX on CPU is not run from several
-threads at once here): start workers as processes, e.g.
-`dask worker tcp://host:8786 --nworkers 8 --nthreads 1`. Every
-problem is solved in a batch of the same fixed size whatever the chunking, so
-the results are identical (bit for bit on the same CPU type). Joint fits (`fit.free_transform`)
-are not batched: `capability_study` keeps its per-part loop for them.
+The chunks, the workers and why identical: docs/models/batch_fits.md.
 """
 
 from __future__ import annotations

@@ -1,20 +1,17 @@
-"""Calibration of the stated uncertainty: do 95 % intervals cover the truth 95 % of the time?
+r"""Calibration of the stated uncertainty: do 95 % intervals cover the truth 95 % of the time?
 
-`coverage_check` simulates many probed parts of one profile with known true
-deviations (each part with its own probe noise and its own draw of the machine
-error sources), fits them all in one batch (`fit_profiles`, the settings a study
-would use), propagates each part to the adjusted tool path (linearised, GUM;
-and, with `bayes=True`, Monte Carlo from the posterior, all parts sampled in
-lockstep), and counts how often the intervals hold the truth:
+[`coverage_check`][] simulates `n_parts` probed parts of one profile with known true
+deviations (each part with its own probe noise and its own draw of the machine error
+sources), fits them all in one batch (`fit_profiles`, the settings a study would use),
+propagates each part to the adjusted tool path (linearised, GUM; with `bayes=True` also
+Monte Carlo from the posterior, all parts sampled in lockstep), and counts how often the
+`p` intervals hold the truth: every feature parameter's
+(`ToolpathUncertainty.deviation_interval`), every vertex coordinate's
+(`vertex_interval`) and the whole path inside the simultaneous band (one event per
+part). It returns a [`CoverageResult`][]. A rate has a binomial standard deviation of
+$\sqrt{p(1-p)/n}$ (0.7 % at n = 1,000, p = 0.95); hits within one part are correlated.
 
-- every feature parameter's `p` interval (`ToolpathUncertainty.deviation_interval`);
-- every vertex coordinate's `p` interval (`vertex_interval`);
-- the whole path inside the simultaneous band (one event per part).
-
-With `n` parts a rate has a binomial standard deviation of
-$\\sqrt{p(1-p)/n}$ (0.7 % at n = 1,000 and p = 0.95); per-parameter and
-per-vertex hits of one part are correlated, so their pooled rate scatters more
-than the count suggests.
+The rates measured: docs/uncertainty.md, section 4.
 """
 
 from __future__ import annotations

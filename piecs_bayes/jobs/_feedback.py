@@ -1,37 +1,18 @@
-"""Feedback over a production run: track every feature from part to part, replay the
+r"""Feedback over a production run: track every feature from part to part, replay the
 feedback policies, and recommend the next part's correction.
 
-Per part (production order: the order of the study's probe files and of the `part`
-column within a file) and feature the value is the characteristic, the normal
-deviation $\\delta$ at a fixed nominal point with its fit uncertainty, the same
-values as the capability study (`capability_values`, batch fits). The arithmetic is
-on $\\delta$ (mm, + outside the material) against the tolerance on $\\delta$;
-the drawn coordinate (`geometry.drawn_scale`: $2\\delta$ on a diameter, ...) only
-states the numbers (`*_drawn_mm`).
+[`feedback_study`][] (a study and its probe files; [`feedback_from_values`][] for values
+from elsewhere) works per part, in production order, and per feature on the
+characteristic $\delta$ (mm, + outside the material; the capability study's values) and
+returns a [`FeedbackResult`][]: per feature the tracking model's predictives, level, odd
+parts and steps (declared in `[feedback] tool_changes`, or found); every policy replayed
+on the counterfactual that a correction adds to the following parts, the anchors both
+with the shop's one setting (a) and tuned on the run (b); the coverage of the 95 %
+predictive intervals; the `bayes` correction for the next part. With finished parts
+the transfer coefficient $\beta$ is fitted and the replay runs on the finish deviations.
+The drawn coordinate only states the numbers (`*_drawn_mm`).
 
-Per feature:
-
-1. the tracking model (`compensate` tracking: local linear trend, steps at tool
-   changes, odd parts; hyper-parameters averaged over their grid) gives the one-step
-   ahead predictive of every part, the level, the probabilities that a part is odd or
-   starts a step, and the steps (declared in `[feedback] tool_changes`, or found);
-2. every policy (`none`, `full`, `fixed_gain`, `mean_value`, `ewma`, `dewma`,
-   `bayes`) is replayed on the counterfactual that a correction adds to the following
-   parts' deviations, in two comparisons for the anchors: (b) tuned over their grids on
-   the same data (their best setting is reported; key: the policy's name) and (a) with
-   the one setting a shop tunes for the machine (`compensate.SHOP_SETTINGS`; key:
-   `"<name> (a)"`); `bayes` runs with fixed settings;
-3. the coverage of the 95 % one-step-ahead predictive intervals;
-4. the `bayes` correction for the next part, with its standard uncertainty.
-
-**Post-process loop.** With finished-part measurements (`[feedback] finish_files`,
-`io.read_finish_files`), the transfer coefficient $\\beta$ of each feature
-(`fit_transfer`: finish $= \\beta\\times$ semifinish) is fitted from the parts
-measured both ways; the replay then runs on the finish deviations the parts would
-show, $\\beta\\,\\delta_k$ (with $u_\\beta$ in the `bayes` predictive), the next-part
-correction acts on $\\beta$ times the level, and the predicted finish bounds are
-checked against the measurements: before the part was cut (the one-step predictive
-times $\\beta$) and from the part's own semifinish measurement ($\\beta\\,y_k$).
+The job and its outputs: docs/formats.md, "Finished-part measurements"; docs/feedback.md.
 """
 
 from __future__ import annotations

@@ -1,38 +1,17 @@
 """A new study from the finish program: `piecs-bayes init` ([`init_study`][]).
 
 The study's `[profile]` is the finish contour of the part program
-(`gcode.finish_contour`: the moves of a G41/G42 run strictly between its lead-in
-and its exit, one feature each), so that the profile and the program cannot
-disagree. What this job adds to the contour:
+(`gcode.finish_contour`: the moves of a G41/G42 run strictly between its lead-in and its
+exit, one feature each), so that the profile and the program cannot disagree.
+[`study_from_program`][] adds readable, unique ids (``dia_24``, ``bore_20``,
+``face_z60``, ``taper_1``, ``arc_1``; ``p`` for the decimal point), `tolerance_on` by
+form, ISO 2768-1 general tolerances of the class (as drawn, marked to be replaced by the
+drawing's), the `[study]`, `[probe]` and `[program]` keys the program gives and marked
+placeholders for the others. [`init_study`][] writes the text atomically after loading
+it back (`io.load_study`) and comparing its geometry with the program's; an existing
+file is refused without `force`. It returns an [`InitResult`][].
 
-- **ids**, readable and unique: a line of constant x is ``dia_<Ø>`` (external)
-  or ``bore_<Ø>`` (internal), a line of constant z ``face_z<depth>`` with depth
-  = -z (``face_z0``, ``face_z60`` at z = -60; z > 0 gives ``face_zp<z>``), any
-  other line ``taper_1``, ``taper_2``..., an arc ``arc_1``, ``arc_2``...; numbers
-  in the study's units with trailing zeros stripped and ``p`` for the decimal
-  point (``dia_24p5``: a dot would split a `[fit] fix` entry
-  ``feature.parameter``); a repeated id gets ``_2``, ``_3``...
-- **tolerance_on** by form: ``"diameter"`` (dia/bore), ``"length"`` (faces),
-  ``"normal"`` (tapers, arcs): the tolerances are written as drawn;
-- **tolerances**: ISO 2768-1 general tolerances of the class (`--tolerance-class`,
-  default m) by nominal size: a diameter's diameter, a face's distance from the
-  program's Z zero (at least 0.5 mm, the first range), a taper's length (Table 1);
-  an arc's radius (Table 2). Where the class has no value (below 0.5 mm, f above
-  2000 mm, v up to 3 mm) the nearest range's is used and the comment says so.
-  Each is marked as a general tolerance to replace with the drawing's;
-- `[study]`: `name` (the program's O-line comment, first comment or O word,
-  else the file's stem), `units` (the program's: G20 -> ``"in"``, every number
-  in inches), `part_program` (relative to the study's folder), `probe_files = []`;
-- `[probe]`: `ball_radius` (given, else a placeholder of 1 mm, or half the
-  smallest concave arc radius when that is smaller, so that the study loads) and
-  `x_mode`; `[program] nose_radius` from G41.1/G42.1's D word or the tool table,
-  else a commented placeholder.
-
-The program is read with the reader's defaults (radius mode and mm until the
-program says G7/G20), as every job reads the study's `part_program`. The written
-text is loaded back (`io.load_study`) and its geometry compared with the
-program's before the file is renamed into place; an existing file is refused
-without `force`.
+Ids, tolerances and every key written: docs/formats.md, "Study from the part program".
 """
 
 from __future__ import annotations

@@ -1,37 +1,18 @@
 """The main job on one study, end to end: [`run_job`][] -> [`JobResults`][].
 
-One call composes the public API in the order an engineer works:
+One call composes the public API in the order an engineer works: read the study and its
+probe data, robust fit of every feature of one part, Bayesian fit with the study's error
+sources, decisions per feature, the adjusted tool path with its uncertainty (GUM and
+Monte Carlo), the adjusted part program, the error specification and tool-offset update
+(three routes of one correction: `JobResults.apply` names the one to load), and a
+capability study when the probe data hold at least 3 parts. Every step after the robust
+fit is optional; a step that cannot give an answer does not stop the job
+(`JobResults.unavailable` says why), while bad input to the job itself and a failed
+robust fit raise. The results are one immutable bundle the writers in `export` read
+(nothing is recomputed there), with the inputs' SHA-256 hashes, the package versions and
+the settings, so that a report can be reproduced.
 
-1. read the study and its probe data; **robust fit** of every feature of one part;
-2. **Bayesian fit** (lockstep ensembles, one jitted JAX loop) with the study's error
-   sources as nuisance parameters;
-3. **decisions** per feature (compensate with a gain, do not compensate, measure
-   more), from the robust fit's normal deviations (`jobs.decide_study`);
-4. the **adjusted tool path** (PIECS mirroring with the decisions' gains);
-5. its **uncertainty**: linearised (GUM) and, with the posterior, Monte Carlo
-   (JCGM 101): vertex covariances, pointwise and simultaneous bands, budget;
-6. the **adjusted part program** and its diff, when the study names a program;
-7. the **error specification** and the **tool-offset update**;
-8. a **capability study** when the probe data hold several parts (at least 3).
-
-Steps 6 and 7 are three routes of one correction to the machine; the results
-name the one to load (`JobResults.apply`, see `apply_route`).
-
-With `progress`, every step that can take more than a second or two says so when
-it starts (and the sampler shows its bars); the last line says the job finished,
-not "done": a caller that goes on writing files says that at its own end.
-
-Every step after the robust fit is optional (keyword switches). A step that
-cannot give an answer (an `AnalysisError` or `InputError` of that step only,
-e.g. a program block that maps to no feature) does not stop the job: the
-results say which step is unavailable and why (`JobResults.unavailable`). Bad
-input to the job itself (the study, the probe files) and a failed robust fit
-raise as usual.
-
-The results are one immutable bundle that the writers in `export` (tables,
-`report_html`, `report_pdf`) read; nothing in it is recomputed by them. The
-bundle also records the inputs (files with SHA-256 hashes), the package
-versions and the settings, so that a report can be reproduced.
+The steps and the bundle: docs/models/jobs.md.
 """
 
 from __future__ import annotations

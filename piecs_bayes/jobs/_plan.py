@@ -1,30 +1,18 @@
 """The probe plan of a study: where to probe every feature, in which order, by which
 moves, and what uncertainty it promises (`plan_study` -> [`ProbePlan`][]).
 
-Per feature (`uncertainty.design_fractions`): the usable window of the ball
-(`geometry.probe_window`: ball radius plus `end_clearance` from sharp ends, the
-ball at contact `end_clearance` from every other feature), then either the given
-count or the least count that reaches the tolerance-to-U ratio (`[plan] ratio`,
-default 4), with the study's probe repeatability, loss, sigma rule and systematic
-sources: the prediction is the one the decision will make (`uncertainty.predict_feature`).
+[`plan_study`][] takes the study's `[plan]` settings: per feature the usable window of
+the ball (`geometry.probe_window`) and either the given count or the least count that
+reaches the tolerance-to-U ratio, placed by `uncertainty.design_fractions` with the
+prediction the decision will make ([`FeaturePlan`][]); per point the nominal contact,
+the ball centre, the approach and the probe move from its stand-off outside the stock
+to beyond the largest plausible deviation ([`PlannedPoint`][]); safe moves between
+stand-offs (straight where the ball keeps `clearance` from the stock, else by the
+retract line), the shortest order found (nearest neighbour, then 2-opt) and the
+predicted time. An undercut stand-off or an untouchable feature is refused naming it.
+[`plan_more`][] places the extra points a "measure more" verdict asks for.
 
-Per point: the nominal contact point $q$, the ball centre at contact $c = q + r n$,
-the approach $-n$; the probe move starts at the stand-off $s = c + (\\text{stock} +
-\\text{clearance})\\,n$ (outside the stock envelope by the clearance) and targets
-$c - \\text{overtravel}\\,n$ (`[plan] overtravel`, beyond the largest plausible
-deviation: more than `[compensation] max_correction`).
-
-**Safe moves.** Between stand-offs the ball keeps at least `clearance` from the
-stock (the nominal profile grown by `[program] stock`): a straight move where it
-does, else out to the retract line (above the largest stock radius for an external
-profile, below the smallest for a bore), along it and back in. A point whose
-stand-off cannot be reached so (an undercut) is refused naming its feature; so is a
-feature the ball cannot touch anywhere (a groove narrower than the ball).
-
-**Order.** Nearest neighbour from the retract line, then 2-opt on the lengths of the
-safe moves: the shortest travel found. **Time**: rapid moves at `[plan] rapid_feed`
-(default 4,000 mm/min) and the way back from each touch, probe moves (stand-off to
-the nominal contact) at the probing feed.
+The plan: docs/models/gauging.md, "The probe plan".
 """
 
 from __future__ import annotations

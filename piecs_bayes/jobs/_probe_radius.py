@@ -1,19 +1,18 @@
-"""Probe points corrected to a calibrated probe, and the calibration as a source.
+r"""Probe points corrected to a calibrated probe, and the calibration as a source.
 
-With `[probe] calibration`, the distance from a recorded ball centre to the
-surface is the calibrated effective radius $r(\\theta)$ at the point's approach
-angle, not one radius. Every point is moved along its approach by
-$r(\\theta) - r_0$ when it is read (`calibrated_points`), so that every fit, with
-its one radius $r_0$, sees the surface where the calibration puts it: exactly
-as each point's own radius would, to the same first order in the small angle
-between approach and normal that the fits already make. The approach is the
-probe file's (a control's file read against its plan) or the nominal feature's
-inward normal at the point.
+With `[probe] calibration`, the distance from a recorded ball centre to the surface is
+the calibrated effective radius $r(\theta)$ at the point's approach angle, not one
+radius. [`calibrated_points`][] moves every point along its approach by
+$r(\theta) - r_0$ when it is read, so that every fit, with its one radius $r_0$, sees
+the surface where the calibration puts it; the approach is the probe file's or the
+nominal feature's inward normal ([`approach_directions`][]).
+[`radius_components`][] gives the calibration's uncertainty as independent components
+(`fit.RadiusComponents`), one systematic source correlated over every point, for the
+linearised propagation, the budget and the Bayesian fit; [`lobing_pretravel`][] is the
+pretravel of a lobing probe for the simulator; [`calibration_warnings`][] what the
+outputs must say of a calibration made at another feed or too old.
 
-The calibration's uncertainty is a systematic source correlated over every
-point through the coefficients: `calibration_sources` gives its independent
-components (`fit.RadiusComponents`) with their standard deviations, for the
-linearised propagation, the budget ("probe calibration") and the Bayesian fit.
+The correction and its accuracy: docs/uncertainty.md, section 5.
 """
 
 from __future__ import annotations

@@ -1,24 +1,16 @@
 """Where a ball moving along a straight segment first touches a deviated profile.
 
-The truth part is the nominal profile with each feature's deviation: a line moves
-and turns (`Line.actual`), its extent from `point_at(0)` to `point_at(1)` on the
-deviated line; an arc gets its deviated centre and radius (`Arc.actual`), its
-extent the nominal sweep from `point_at(0)` about the deviated centre. The ball
-(radius r) touches the part when the distance from its centre to any feature's
-piece (end points included) falls to r.
+[`truth_pieces`][] builds the truth part (the nominal profile with each feature's
+deviation: a line moved and turned over its deviated extent, an arc with its deviated
+centre and radius over its nominal sweep) as [`Piece`][] s; [`first_contact`][] gives,
+for a ball of radius ``r`` whose centre moves from ``a`` to ``b``, the fraction of the
+move at the first contact and the feature touched, or None; [`piece_distance`][] is a
+centre's distance from a piece. The roots are closed forms per piece (a line: linear;
+an arc: ``|c - C| = R +- r``; an end point: ``|c - E| = r``), solved in the
+cancellation-free form: exact to a few ulps of the coordinates (about 1e-14 mm on a
+100 mm part).
 
-Closed forms, per piece, for the centre ``a + s (b - a)``, ``s`` in [0, 1]:
-
-- line interior: the signed distance to the line is linear in ``s``; ``= +-r``
-  with the foot inside the extent;
-- arc interior: ``|c - C| = R + r`` or ``R - r`` (a quadratic), with the centre's
-  direction from C inside the sweep;
-- end points: ``|c - E| = r`` (a quadratic).
-
-The smallest root over all pieces is the first contact (the distance is
-continuous along the move and greater than r at its start). The quadratics are
-solved in the cancellation-free form; the roots are exact to a few ulps of the
-coordinates (about 1e-14 mm on a 100 mm part).
+The closed forms: docs/models/gauging.md, "The simulated machine".
 """
 
 from __future__ import annotations

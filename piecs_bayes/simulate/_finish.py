@@ -1,21 +1,17 @@
-"""Simulated finished-part measurements of a simulated run (the post-process loop).
+r"""Simulated finished-part measurements of a simulated run (the post-process loop).
 
-The shipped batch (`data/batch`, `jobs.simulate`) holds each part's true deviations
-(`truth.json`) at the semifinish probing. The finish cut repeats a share of the
-semifinish deviation (tool offset, deflection and wear act on both cuts; the finish
-cut's smaller depth lessens deflection): for part $k$ and feature $f$, with
-$\\delta_{kf}$ the true normal deviation at the characteristic point (`at`, the
-nominal mid-point by default),
+The shipped batch (`data/batch`) holds each part's true deviations (`truth.json`) at the
+semifinish probing. [`write_finish`][] simulates the finish cut repeating a share of
+them: for part $k$ and feature $f$, with $\delta_{kf}$ the true normal deviation at the
+characteristic point (`at`, the nominal mid-point by default),
+$\phi_{kf} = \beta_f\,\delta_{kf} + e_{kf}$, $e_{kf} \sim N(0, s_f^2)$, cut without any
+feedback correction, and measured on a CMM, $m_{kf} = \phi_{kf} + N(0, u_\text{CMM}^2)$.
+It writes one CSV per finished part (every `every`-th; docs/formats.md, "Finished-part
+measurements"), each deviation as drawn with its u, and the truth ($\beta_f$, $s_f$,
+$u_\text{CMM}$, the seed, every $\phi_{kf}$ and $\delta_{kf}$ as normal deviations in
+mm) in `truth.json` beside them.
 
-$$\\phi_{kf} = \\beta_f\\,\\delta_{kf} + e_{kf},\\qquad e_{kf} \\sim N(0, s_f^2),$$
-
-cut without any feedback correction (the run as the semifinish data shows it), and
-measured on a CMM with standard uncertainty $u_\\text{CMM}$:
-$m_{kf} = \\phi_{kf} + N(0, u_\\text{CMM}^2)$. [`write_finish`][] writes one CSV per
-finished part (docs/formats.md, "Finished-part measurements"), each deviation as
-drawn (on the feature's `tolerance_on`, as a CMM reports it) with its u, and the
-truth ($\\beta_f$, $s_f$, $u_\\text{CMM}$, the seed, every $\\phi_{kf}$ and
-$\\delta_{kf}$ as normal deviations in mm) in `truth.json` beside them.
+Why the finish cut repeats a share: docs/models/simulation.md.
 """
 
 from __future__ import annotations

@@ -1,37 +1,17 @@
 """A simulated machine: the gauging program run against a truth part, and the file
 the control would write (`simulate_gauge` -> [`GaugeRun`][]).
 
-**What it reads.** The program's moves (`gcode.read_gauge_program`: LinuxCNC or
-Fanuc, mm, X a radius, work frame = the study's part frame); the study's profile
-and ball radius; the truth: per feature id, its deviation (the schema of
-data/demo/truth.json, `read_truth`).
-
-**Contact.** For every probe move the ball centre moves from the move's start to
-its target; the first point where its distance to the deviated profile (any
-feature, within its extent, `_sim_contact`) falls to the ball radius is the
-contact. The trip comes later along the move by the probe's repeatability (a
-normal draw, sd `repeatability`, one per probe move in program order from
-``numpy.random.default_rng(seed)``) plus the pretravel (a constant in mm, or a
-function of the approach angle ``atan2(u_x, u_z)`` in radians of the move's unit
-direction u in the XZ plane). A move that touches nothing before its end:
-LinuxCNC ``G38.2`` stops with "G38.2 move finished without making contact" (an
-`AnalysisError`, naming the line and the planned point); ``G38.3`` records its end
-point, and so does Fanuc's ``G31``. A ball already touching at a probe move's start
-is LinuxCNC's "Probe is already tripped when starting G38.2 or G38.3 move"; a touch
-during a rapid or feed move (one not leaving a trip) is "Probe tripped during
-non-probe move". After a trip the control's position is the trip point: an
-incremental (G91) move after a probe move is refused (its end would depend on it).
-
-**What it writes** (`GaugeRun.text`, `GaugeRun.write`):
-
-- LinuxCNC (PROBEOPEN file): one line ``"%f %f %f %f %f %f %f %f %f\\n"`` per
-  recorded probe, X Y Z A B C U V W of the ball centre at the trip in program
-  units, X a radius even in G7, the other axes 0; a position equal to the last
-  one is not written again (as LinuxCNC does); only probes between PROBEOPEN and
-  PROBECLOSE are written.
-- Fanuc: one line per DPRNT after each G31 (`gcode.DprntFormat.render`: ``X``,
-  the value as ``[ab]`` prints it, ``*`` a blank, ``Z``...), #5061 a diameter or a
-  radius as the control's X mode says.
+[`simulate_gauge`][] reads the program's moves as the control would
+(`gcode.read_gauge_program`: LinuxCNC or Fanuc; mm, X a radius, the study's part frame)
+and the truth (per feature id its deviation, [`read_truth`][]). Along every probe move
+the ball's first contact with the deviated profile (`_contact`) trips the probe later by
+a normal draw of sd `repeatability` (one per probe move, in program order, from
+``numpy.random.default_rng(seed)``) plus the `pretravel` (mm, or a function of the
+approach angle). The control's errors are its messages (an `AnalysisError` for a G38.2
+move without contact, a probe tripped at a move's start or during a non-probe move); a
+G38.3 or G31 without contact records its end. [`GaugeRun`][] holds the trips and the
+file: LinuxCNC's PROBEOPEN lines (`%f`, X a radius even in G7) and LOG lines, or
+Fanuc's DPRNT lines. The machine, move by move: docs/models/gauging.md.
 """
 
 from __future__ import annotations

@@ -1,32 +1,18 @@
-"""Pointwise and simultaneous confidence bands along a curve.
+r"""Pointwise and simultaneous confidence bands along a curve.
 
-For a curve $g(z)$ estimated at grid points $z_1 \\dots z_n$ with standard
-uncertainties $u(z_i)$, a band is $\\hat g(z_i) \\pm c_i\\, u(z_i)$:
+For a curve $g(z)$ estimated at grid points with standard uncertainties $u(z_i)$, a band
+is $\hat g(z_i) \pm c_i\, u(z_i)$, returned as [`Bands`][]: **pointwise** ($c_i$ the
+$p$ quantile of the standardised error at each point alone: it covers each point with
+probability $p$, the whole curve much less often) and **simultaneous** (max-t: one $c$,
+the $p$ quantile of the largest standardised error, so the band holds the whole curve
+with probability $p$). [`bands_from_samples`][] takes Monte Carlo draws of the curve
+values (JCGM 101; empirical quantiles); [`bands_linear`][] a linearised mean and
+covariance (GUM), simulating the max-$|z|$ quantile (`method="mc"` or `"qmc"`, Student-t
+with `dof`, a Type A share with `cov_estimated`) or bounding it by Scheffé's
+(`"scheffe"`, conservative). For a tool path the curve values are the signed offsets
+normal to the path at the grid points; these functions only see numbers along a curve.
 
-- **pointwise**: $c_i$ is the $p$ quantile of $|\\hat g(z_i) - g(z_i)|/u(z_i)$ at
-  each point alone ($\\approx 1.96$ for $p = 0.95$, $t_\\nu$ with an estimated
-  scale). It covers each point with probability $p$, but the *whole* curve
-  much less often;
-- **simultaneous** (max-t): one $c$, the $p$ quantile of
-  $\\max_i |\\hat g(z_i) - g(z_i)|/u(z_i)$, so the band holds the whole curve
-  with probability $p$ (about 2.7 for a 3-parameter profile on a fine grid).
-
-Two routes:
-
-- `bands_from_samples`: Monte Carlo draws of the curve values (posterior
-  samples pushed through the model, JCGM 101); the quantiles are empirical.
-- `bands_linear`: a linearised mean and covariance $U$ of the curve (GUM).
-  The standardised error is $N(0, R)$ with $R$ the correlation matrix of $U$
-  (multivariate $t_\\nu$ when `dof` is given). Its max-$|z|$ quantile is simulated
-  (`method="mc"`, or `"qmc"` with a scrambled Sobol sequence, through a
-  rank-$r$ factor of $R$ so a curve from $r$ parameters costs $r$ normals a
-  draw), or bounded by Scheffé's $\\sqrt{\\chi^2_{r,p}}$ ($\\sqrt{r F_{r,\\nu,p}}$)
-  (`method="scheffe"`, exact for the worst linear combination, so
-  conservative on any grid). Pass `factor=` ($U = L L^\\top$, e.g.
-  $G\\,\\mathrm{chol}(U_\\theta)$) instead of `cov=` to skip the eigen-decomposition.
-
-For a tool path, the curve values are the signed offsets normal to the path at
-the grid points; these functions only see numbers along a curve.
+The two bands and the two routes: docs/uncertainty.md, section 7.
 """
 
 from __future__ import annotations

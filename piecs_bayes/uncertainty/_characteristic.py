@@ -2,28 +2,17 @@ r"""The characteristic of a feature: its normal deviation at a nominal point, wi
 uncertainty. One model for the decisions, capability studies (one part or a batch of
 parts), the error specification, tool offsets, posterior draws and the figures.
 
-**The characteristic** is the *normal deviation*: the distance from a nominal point
-$q$ of the feature to the fitted feature, along the nominal outward normal, positive
-outside the material (more material on a shaft, a larger diameter):
+The characteristic is the *normal deviation* $\delta(q)$: the distance from a nominal
+point $q$ of the feature to the fitted feature along the nominal outward normal,
+positive outside the material (for a diameter the radius error). [`feature_characteristic`][]
+returns a [`Characteristic`][] with $u_\text{fit}$, linearised from the fit covariance
+(`jax.jacfwd` of the fit's own model), and $u_\text{sys}$ from the systematic sources
+that more probe points do not reduce ([`u_systematic`][]); [`characteristic_arrays`][]
+does the same for every part of a batch. Where $q$ lies (`at`): `"start"`, `"mid"`,
+`"end"` (fraction 0, 0.5, 1 of the nominal feature), or `"worst"`: of the start,
+mid-point and end (lines; nine points along arcs) the one with the largest $|\delta|$.
 
-$$\delta(q) = -d_\text{signed}(q;\ \hat\theta),$$
-
-with $\hat\theta$ the fitted deviation parameters. For a line at its nominal
-mid-point this is the fitted `offset` (for a diameter: the radius error; the
-diameter error is $2\delta$). Its standard uncertainty is linearised from the fit
-covariance $C$: $u_\text{fit}^2 = g^\top C g$, $g = \partial\delta/\partial\theta$
-(`jax.jacfwd` of the fit's own signed-distance model). The systematic sources that
-more probe points do not reduce (ball radius, pretravel, centre-line and Z offsets,
-axis scales, rotation) add $u_\text{sys}^2 = \sum_s (c_s\,\sigma_s)^2$ with the
-sensitivities at $q$ (outward normal $n$): ball radius and pretravel 1, `x_centre`
-$n_x$, `z_offset` $n_z$, `scale_x` $n_x x_q$, `scale_z` $n_z z_q$, `rotation`
-$n\cdot(z_q, -x_q)$. The probe repeatability is already in $C$; `thermal` needs a
-temperature difference and is not used here.
-
-Where $q$ lies (`at`): `"start"`, `"mid"`, `"end"` (fraction 0, 0.5, 1 of the
-nominal feature), or `"worst"`: of the start, mid-point and end (lines; nine points
-along arcs) the one with the largest $|\delta|$ (the tolerance zone applies to the
-whole feature, and the deviation of a line is affine along it).
+The model and the sources' sensitivities: docs/uncertainty.md, section 6.
 """
 
 from __future__ import annotations

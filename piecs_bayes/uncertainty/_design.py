@@ -1,37 +1,18 @@
 r"""Where to probe a feature: a design for the uncertainty of the characteristic.
 
-The decision judges a feature by its characteristic, the normal deviation
-$\delta(q)$ at nominal points $q$ (`at_fractions`: start, mid-point and end of a
-line, nine points along an arc for `"worst"`). Probe points at fractions $t_i$ of
-the feature give, linearised at the nominal (the fit's own model, `jax.jacfwd`),
-the Jacobian $J$ of the residuals with respect to the feature's free deviation
-parameters, and
+Probe points at fractions $t_i$ of a feature give, linearised at the nominal, the
+characteristic's $u_\text{fit}(q)$ at its nominal points $q$ (with the declared probe
+repeatability and the robust loss's variance factor); the systematic sources add
+$u_\text{sys}(q)$, which no design reduces. [`predict_feature`][] gives the prediction
+([`FeaturePrediction`][]: $u$, dof, $U$, the tolerance-to-U ratio).
+[`design_fractions`][] places `n` points in the feature's usable window: a share
+(`inside_share`) spread evenly inside, the others by coordinate exchange to minimise the
+largest $u_\text{fit}$ over the characteristic's points (G-optimal), never worse than
+[`uniform_fractions`][]; [`augment_fractions`][] adds points beside existing ones;
+[`points_for_ratio`][] finds the least count that reaches a ratio. The settings are a
+[`DesignSettings`][].
 
-$$u_\text{fit}^2(q) = \kappa\,\sigma^2\, g(q)^\top (J^\top J)^{-1} g(q),$$
-
-with $\sigma$ the declared probe repeatability, $\kappa$ the robust loss's variance
-factor at the normal (`fit.normal_variance_factor`: 1.0526 for Huber) and
-$g = \partial\delta/\partial\theta$. The systematic sources add $u_\text{sys}(q)$
-(`u_systematic`), which no design reduces. The **criterion** is the largest
-$u_\text{fit}$ over the characteristic's points (the decision does not know in
-advance which of them will be the worst): a G-optimal (minimax) design in the
-sense of Kiefer and Wolfowitz, restricted to the feature's usable window.
-
-**The design** (`design_fractions`): a share of the points (`inside_share`,
-default 0.2 rounded down, at least one from five points on; none with a share of
-0) is spread evenly inside the window, where form errors and chips stay visible;
-the others are placed by
-coordinate exchange (Fedorov) on a grid of 201 candidate fractions, keeping a
-minimum spacing along the feature (`spacing`, or less where the window is
-short), to minimise the criterion. For a line the optimum puts them at both
-ends of the window; for an arc at its ends and middle. The result is never worse
-than the uniform spacing of the same count (that one is kept when it is not, and
-when the window is too short for the count at the spacing).
-
-**Counts** (`points_for_ratio`): the least count whose expanded uncertainty
-$U = k_t\,u$ gives the tolerance-to-U ratio $(T_\text{hi} - T_\text{lo}) / (2U)$
-asked for (4:1, the usual test-uncertainty ratio), with $k_t$ the decision's
-coverage factor at the Welch-Satterthwaite dof of $u$.
+The criterion and the design: docs/uncertainty.md, section 8.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Figure of the uncertainty budget by source (see `_figures.py` for the conventions)."""
+"""Figure of the uncertainty budget by source (see `_base.py` for the conventions)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Figures of a capability study: individuals charts and capability indices
-(see `_figures.py` for the conventions)."""
+(see `_base.py` for the conventions)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Figures of feedback over a production run (see `_figures.py` for the conventions):
+"""Figures of feedback over a production run (see `_base.py` for the conventions):
 the tracked deviation per feature with its predictive band, steps, odd parts and each
 policy's realised trace, and the policies' RMS deviation per feature. Every length as
 drawn (µm on the diameter for a diameter, on Z for a face, along the normal for tapers

@@ -1,5 +1,5 @@
 """Figures of the Bayesian fit: traces, convergence diagnostics and a corner plot
-(see `_figures.py` for the conventions)."""
+(see `_base.py` for the conventions)."""
 
 from __future__ import annotations
 

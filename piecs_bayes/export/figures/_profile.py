@@ -1,5 +1,5 @@
 """Figures of the part: the profile with the adjusted tool path, and the path's offset
-from nominal with its bands (see `_figures.py` for the conventions)."""
+from nominal with its bands (see `_base.py` for the conventions)."""
 
 from __future__ import annotations
 

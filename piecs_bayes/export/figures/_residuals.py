@@ -1,4 +1,4 @@
-"""Figure of the fit's residuals per feature (see `_figures.py` for the conventions)."""
+"""Figure of the fit's residuals per feature (see `_base.py` for the conventions)."""
 
 from __future__ import annotations
 

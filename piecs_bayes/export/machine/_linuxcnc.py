@@ -1,34 +1,18 @@
-"""LinuxCNC joint compensation tables (error specification files, PIECS option 1).
+r"""LinuxCNC joint compensation tables (error specification files, PIECS option 1).
 
-**LinuxCNC joint compensation table** (`[JOINT_n]COMP_FILE`, `COMP_FILE_TYPE`), as read
-by `usrmotLoadComp` (src/emc/motion/usrmotintf.cc) and stored by `EMCMOT_SET_JOINT_COMP`
-(src/emc/motion/command.c):
+[`linuxcnc_comp_text`][] writes a [`CompensationTable`][piecs_bayes.compensate.CompensationTable]
+(corrections of one axis as a function of its own machine position) as a
+`COMP_FILE_TYPE` 0 or 1 table: a correction $c$ is written as the trim $c$ (type 1) or
+as `forward = nominal - c` (type 0), with optional `#` notes after the last entry (the
+only place LinuxCNC does not stop reading early). It refuses (`AnalysisError`) what the
+format cannot express (another axis' position, more than 256 rows after merging, a slope
+$|\Delta c/\Delta p| \ge 1$), re-reads its own text by LinuxCNC's rules and refuses to
+return a table LinuxCNC would load differently. [`parse_linuxcnc_comp`][] gives what
+LinuxCNC would load and the problems by line; `validate_linuxcnc_comp`,
+`read_linuxcnc_comp` raise `InputError` on the first; `write_linuxcnc_comp` writes
+atomically and re-reads the file.
 
-- each line is read with `fgets(buf, LINELEN=255)` and `sscanf("%lf %lf %lf")`; the
-  first line that does not give three numbers **silently ends the table** (a header,
-  a comment or a blank line in the middle drops everything after it), and text after
-  the third number is ignored;
-- type 0: `nominal forward reverse`, the positions the joint actually reaches
-  travelling forward/in reverse when `nominal` is commanded; LinuxCNC stores the trims
-  `nominal - forward`, `nominal - reverse`;
-- type 1: `nominal forward_trim reverse_trim`, the trims themselves;
-- the trim is **added** to the commanded joint position (motor = commanded + trim),
-  interpolated linearly between entries and held constant beyond the first and last;
-- at most 256 entries (`EMCMOT_COMP_SIZE`), `nominal` strictly increasing: an entry
-  that breaks either rule is dropped with an error message, the others are kept.
-
-So the only place for notes is after the last entry: a block of `#` lines there
-ends the reading and loses nothing. The writer puts its notes there (`notes=True`):
-the table's range, that LinuxCNC holds the end values outside it, and that the
-table acts on every move of the joint, probing moves included. The reader accepts
-such a trailing block; anything else after the entries is a problem.
-
-A correction $c$ is therefore written as trim $c$ (type 1) or as
-`forward = nominal - c` (type 0). The writer refuses what this cannot express
-(another axis' position, NaN, more than 256 rows after merging rows that share a
-printed nominal, a slope $|\\Delta c/\\Delta p| \\ge 1$ that would make the motor
-command or the type-0 position column run backwards), re-reads its own text by the
-rules above and refuses to return a table LinuxCNC would load differently.
+How LinuxCNC reads the file, and what is refused: docs/errspec.md.
 """
 
 from __future__ import annotations

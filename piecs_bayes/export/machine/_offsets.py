@@ -1,23 +1,17 @@
 """Tool-offset (wear) updates as G10 lines and JSON.
 
 The update itself ([`tool_offset_update`][piecs_bayes.compensate.tool_offset_update],
-its sign convention and rules) is in `piecs_bayes.compensate`; this module writes it.
+its sign convention and rules) is in `piecs_bayes.compensate`; this module writes it:
+[`g10_linuxcnc`][] (`G10 L1 P<tool> X Z R`, absolute, so the current offsets are
+needed; preceded by `G7`/`G8` and the units word that fix the meaning of X),
+[`g10_fanuc`][] (`G10 P<wear offset> X Z R` absolute with the current values, else
+`U W C` incremental) and [`offsets_to_json`][] / [`offsets_from_json`][]
+(`piecs-bayes-tool-offsets`, version 1). LinuxCNC is addressed by the tool number,
+Fanuc-style lathes by the wear offset number (from the program's T word); a comment
+under the header says where the number came from. A blocked update is never written
+(`AnalysisError`).
 
-**Which number.** The update carries the tool and its wear offset number (from the
-program's T word: `T0202` is tool 2, wear offset 2; see `piecs_bayes.gcode.tool_call`).
-LinuxCNC keeps one tool-table entry per tool: `G10 L1 P<tool>`. Fanuc-style lathes keep
-the wear in numbered offset registers: `G10 P<wear offset>`. A comment line under the
-header says where the tool number came from.
-
-**G-code.** LinuxCNC `G10 L1 P<tool> X Z R` *sets* tool-table values (absolute), so the
-current offsets are needed. The interpreter reads the X word like any other X word: in
-diameter mode (G7) it is a diameter and is halved before it is stored (the table holds
-radius values), in G8 it is a radius; the writer therefore emits `G7` or `G8` (and the
-units word) on the line before the G10 to fix the meaning of X. R is the tool (nose)
-radius. Fanuc-style lathes take `G10 P<offset> X Z R` (absolute) or `G10 P<offset> U W C`
-(incremental, used when the current values are not given); `P` 1-64 is the wear offset
-number (add 10000 for geometry), X/U is a diameter or a radius depending on the control's
-parameter (ORC), so state `x_mode` as the control expects.
+The G-code of each controller: docs/errspec.md, "Tool-offset updates".
 """
 
 from __future__ import annotations

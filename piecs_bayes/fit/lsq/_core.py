@@ -1,26 +1,18 @@
 r"""The array-level least-squares solve, [`solve_arrays`][]: flat parameters in, an
-[`LsqArrays`][] out, status as an integer code. It is jit-, `vmap`- and
-`jacfwd`-friendly: batch many independent problems of one shape with `jax.vmap`,
-and differentiate the fitted parameters with respect to the data (`args`) through
-optimistix's implicit adjoint.
+[`LsqArrays`][] out, status as an integer code (it never raises on a failed solve). It is
+jit-, `vmap`- and `jacfwd`-friendly: batch many independent problems of one shape with
+`jax.vmap`, and differentiate the fitted parameters with respect to the data (`args`)
+through optimistix's implicit adjoint.
 
-The objective is $\tfrac12\sum_i s^2\rho\big((\sqrt{w_i}\,r_i/s)^2\big)$ with
-$r_i$ the raw residuals from `fn`, $w_i \ge 0$ the weights (inverse variances; zero
-excludes a point) and $\rho$ a loss in SciPy's convention (see `losses.py`).
-A robust loss is solved by wrapping the residuals,
-$g_i = e_i\sqrt{\rho(z_i)/z_i}$, $z_i=(e_i/s)^2$, so that the plain
-Gauss-Newton machinery minimises the robust objective exactly.
+The objective is $\tfrac12\sum_i s^2\rho\big((\sqrt{w_i}\,r_i/s)^2\big)$ with $r_i$ the
+raw residuals from `fn`, $w_i \ge 0$ the weights (inverse variances; zero excludes a
+point) and $\rho$ a loss in SciPy's convention (`losses`). A robust loss is solved in
+stages (plain, then Huber, then the loss; [`stages`][]), re-estimating the scale between
+them when it is not given; up to `POLISH_STEPS` Gauss-Newton steps then take the
+solution to full precision. The result's statistics and final status are
+[`statistics`][]'s (`_statistics`).
 
-Robust stages: a plain fit first, then `SCALE_ROUNDS` Huber fits (convex, so they
-give a good start for the redescending Cauchy and Tukey losses), then the requested
-loss, also repeated. When the scale is estimated (`scale=None`) it is re-estimated
-from the previous stage's residuals before each robust stage, so that scale and fit
-reach their joint fixed point; a given scale is used throughout.
-
-After the solver, up to `POLISH_STEPS` Gauss-Newton steps (kept only when they do
-not raise the cost beyond rounding noise) take the solution from the solver's
-Cauchy tolerance to full precision; the result's statistics and final status are
-[`statistics`][]'s (`_lsq_statistics`).
+The staged solve: docs/models/least_squares.md.
 """
 
 from __future__ import annotations

@@ -1,19 +1,15 @@
 r"""General (robust) nonlinear least squares on optimistix, with a typed result.
 
-Two layers:
+[`least_squares`][] is the layer for people over the array-level core
+[`solve_arrays`][] (`_core`): a pytree of parameters, input checks, a [`LsqResult`][]
+that prints well, and `throw=True` raising
+[`AnalysisError`][piecs_bayes.errors.AnalysisError] (carrying the result) on a failed
+solve. [`flat_structure`][] gives the names and `unravel` of `p` flat parameters, made once.
 
-- [`solve_arrays`][] (`_lsq_core`) is the pure array-level core: flat parameters
-  in, a `NamedTuple` of arrays out, status as an integer code. It is jit-,
-  `vmap`- and `jacfwd`-friendly.
-- [`least_squares`][] (here) wraps it for people: a pytree of parameters, input
-  checks, a [`LsqResult`][] that prints well, and `throw=True` raising
-  [`AnalysisError`][piecs_bayes.errors.AnalysisError] (carrying the result) on a
-  failed solve.
-
-The engine's modules, by topic: `_lsq_types` (the `Status` codes and the array
-result), `_lsq_solver` (the optimistix solvers and their status mapping),
-`_lsq_core` (the staged robust solve and its polishing), `_lsq_statistics`
-(covariance, outliers, the final status) and `_lsq_result` (`LsqResult`).
+The engine's modules, by topic: `_types` (the `Status` codes and the array result),
+`_solver` (the optimistix solvers and their status mapping), `_core` (the staged robust
+solve and its polishing), `_statistics` (covariance, outliers, the final status) and
+`_result` (`LsqResult`); docs/models/least_squares.md.
 """
 
 from __future__ import annotations

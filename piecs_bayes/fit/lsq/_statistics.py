@@ -3,26 +3,15 @@ r"""What a least-squares solution says: the Jacobian and its SVD at the solution
 status ([`statistics`][]). Shared by `_solve_core` and the batch kernel, so both
 report the same numbers.
 
-Covariance, with $J_w = \mathrm{diag}(\sqrt{w})J$, $e_i=\sqrt{w_i}\,r_i$,
-$W_i=\rho'(z_i)$ the robust (IRLS) weights and $\psi(u)=u\rho'(u^2)$:
+The covariance is $\sigma^2 (J_w^TJ_w)^{-1}$ for the linear loss (with the residual
+variance when `sigma` is not given); for a robust loss Huber's (1981) estimate without
+`sigma`, and the sandwich with the final weights held fixed with it. A point is an
+outlier when its robust weight is below the weight of a residual of three robust
+standard deviations. A solution is SUCCESSFUL only if the Gauss-Newton step left is
+negligible (`STATIONARY_RTOL`): a solver that merely stopped moving is STALLED, never an
+answer.
 
-- linear loss: $\sigma^2 (J_w^TJ_w)^{-1}$ with `sigma` given, else
-  $s^2 (J_w^TJ_w)^{-1}$, $s^2 = \mathrm{RSS}/\mathrm{dof}$;
-- robust loss, `sigma=None`: Huber's (1981, sec. 7.6) estimate
-  $K^2\,\dfrac{\sum_i (W_i e_i)^2/\mathrm{dof}}{\overline{\psi'}^{\,2}}
-  (J_w^TJ_w)^{-1}$, $K = 1 + \tfrac{p}{n}\mathrm{var}(\psi')/\overline{\psi'}^2$
-  (calibrated in simulation: 3-sigma coverage 98-99 % with 10-25 % gross outliers);
-- robust loss, `sigma` given: weighted least squares with the final weights held
-  fixed, $\sigma^2 A^{-1}(J_w^T W^2 J_w)A^{-1}$, $A = J_w^T W J_w$ (1-3 % optimistic
-  in the standard error for the 95 %-efficient tunings at the normal).
-
-A point is flagged as an outlier when its robust weight is below the weight the
-loss gives to a residual of three robust standard deviations ($3s/c$, $c$ the
-loss's tuning constant).
-
-A solution is reported as SUCCESSFUL only if the Gauss-Newton step left is
-negligible (`STATIONARY_RTOL`): a solver that merely stopped moving is reported
-as STALLED, never as an answer.
+The formulas: docs/models/least_squares.md, "What a solution says".
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import jax
 
-#: the engine's solvers (optimistix; `_lsq_solver`)
+#: the engine's solvers (optimistix; `_solver`)
 SOLVERS = ("lm", "gauss_newton", "dogleg")
 
 

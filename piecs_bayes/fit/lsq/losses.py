@@ -1,29 +1,17 @@
 r"""Robust losses for least squares, in SciPy's convention.
 
-A loss is a function $\rho(z)$ of the squared scaled residual $z = (e/s)^2$,
-with $\rho(z) \approx z$ near zero, so that the objective is
+A loss is a function $\rho(z)$ of the squared scaled residual $z = (e/s)^2$, with
+$\rho(z) \approx z$ near zero, so that the objective is
 $\tfrac12 \sum_i s^2 \rho\big((e_i/s)^2\big)$, exactly as
-`scipy.optimize.least_squares(loss=..., f_scale=s)`. Here $e_i = \sqrt{w_i}\,r_i$
-is the weighted residual and $s$ the *scale*: the soft threshold (in the units of
-$e$) beyond which a residual is treated as an outlier.
+`scipy.optimize.least_squares(loss=..., f_scale=s)`; $e_i = \sqrt{w_i}\,r_i$ is the
+weighted residual and $s$ the *scale*. Named losses (`LOSS_NAMES`): `"linear"`,
+`"huber"`, `"soft_l1"`, `"cauchy"`, `"tukey"`, or a callable `rho(z)` with
+$\rho(0)=0$, $\rho'(0)=1$. `TUNING` holds each loss's tuning constant (about 95 %
+efficiency at the normal), [`mad_sigma`][] the robust standard deviation
+$1.4826\,\mathrm{MAD}$ that, times the constant, is the default scale, and
+[`normal_variance_factor`][] the loss's variance factor at the normal.
 
-Which loss when:
-
-- `"linear"`: ordinary least squares; optimal for Gaussian noise, no protection.
-- `"huber"`: quadratic inside $|e| < s$, linear outside. Convex, so the fit is
-  unique; bounded influence but every outlier still pulls a little (one-sided
-  contamination such as chips leaves a small bias).
-- `"soft_l1"`: a smooth Huber ($2(\sqrt{1+z}-1)$). Convex.
-- `"cauchy"`: $\log(1+z)$. Redescending: far outliers get weights near zero.
-  Not convex: start it from a good fit (done automatically).
-- `"tukey"`: Tukey's biweight, $\tfrac13(1-(1-z)^3)$ for $z \le 1$ and $\tfrac13$
-  beyond; points further than $s$ get weight exactly zero. Not in SciPy.
-- a callable `rho(z)`: any function with $\rho(0)=0$, $\rho'(0)=1$, in the same
-  convention (its tuning constant is taken as 1).
-
-When the scale is not given, it is the loss's tuning constant times a robust
-standard deviation, $\hat\sigma = 1.4826\,\mathrm{MAD}$: Huber and soft-L1 1.345,
-Cauchy 2.385, Tukey 4.685 (about 95 % efficiency at the normal distribution).
+Which loss when: docs/models/least_squares.md, "Losses".
 """
 
 from __future__ import annotations

@@ -1,25 +1,15 @@
 r"""MCMC diagnostics of ensemble samplers, computed the way ArviZ computes them.
 
-An emcee ensemble is one Markov chain on the product space of its walkers;
-its walkers are coupled, so they are never ArviZ *chains*. The package stores
-and diagnoses draws in one layout (`arviz_layout`): **chain = one independent
-ensemble**, **draw = the ensemble's walker trajectories one after the other**
-(walker 0's kept steps, then walker 1's, ...). On that layout
+The walkers of one emcee ensemble are coupled, so they are never ArviZ *chains*. The
+package stores and diagnoses draws in one layout ([`arviz_layout`][]): **chain = one
+independent ensemble**, **draw = the ensemble's walker trajectories one after the
+other**. On that layout [`ess_bulk`][] and [`split_rhat`][] reproduce
+`arviz.ess(..., method="bulk")` and `arviz.rhat(..., method="rank")` (arviz 0.2x) to
+rounding ([`ess_and_rhat`][] shares the ranks between the two); with a single ensemble
+`split_rhat` still compares the two halves of its walkers, where ArviZ gives NaN.
+`problems` says which diagnostics failed and what to change.
 
-- the effective sample size is ArviZ's rank-normalised bulk ESS (Vehtari et al.
-  2021): within a walker's stretch the autocorrelation at lag $\ell$ is the
-  walker-averaged autocorrelation of the ensemble, which is what emcee's $\tau$
-  measures too, so ESS $\approx K W S/\tau$;
-- $\hat R$ is ArviZ's rank-normalised split $\hat R$ (the larger of bulk and
-  folded-tail), comparing the ensembles (and the two halves of each ensemble's
-  walkers) with each other.
-
-`ess_bulk` and `split_rhat` reproduce `arviz.ess(..., method="bulk")` and
-`arviz.rhat(..., method="rank")` (arviz 0.2x) to rounding, with the ranks shared
-between the two; `tests/fit/mcmc/test_bayes.py` checks the parity on stored posteriors. One
-difference: with a single ensemble ArviZ's R-hat is NaN (fewer than 2 chains), while
-`split_rhat` still compares the two halves of its walkers (a NaN would pass any
-`rhat > rhat_max` test unseen).
+The layout and the parity with ArviZ: docs/models/sampling.md, "Diagnostics".
 """
 
 from __future__ import annotations

@@ -1,28 +1,17 @@
 r"""Bayesian fits of many parts: independent ensembles stepped in lockstep.
 
-emcee's affine-invariant moves couple the walkers of one ensemble (a walker's
-proposal is built from the other walkers), so two parts must never share an
-ensemble: their posteriors differ, and a move across them would not leave
-either invariant. What *can* be shared is the work per step. Here every part
-gets `n_ensembles` ensembles of its own (as [`sample_posterior`][] does), and
-all `parts x ensembles` ensembles advance together: each half-step of the
-red-blue scheme (Foreman-Mackey et al. 2013) proposes a move for half of the
-walkers of **every** ensemble from the other half of **the same** ensemble,
-and one jitted call of the log posterior, `vmap`-ed over parts and walkers,
-evaluates all the proposals. Each ensemble is therefore exactly an emcee
-ensemble (same moves, same acceptance rule; only the random numbers differ),
-and the parts are independent Markov chains.
+[`sample_posteriors`][] samples one log posterior for `P` parts (`x0` of shape
+`(P, dim)`, every leaf of `args` with a leading axis of length `P`) and returns one
+[`Posterior`][] per part. Every part gets `n_ensembles` ensembles of its own, as
+[`sample_posterior`][] does, and all ensembles advance together: each half-step of the
+red-blue scheme proposes a move for half of the walkers of every ensemble from the other
+half of the same ensemble, and one jitted, `vmap`-ed call evaluates all proposals
+(`backend="jax"`: the whole chain one JAX loop; `"numpy"`). Each ensemble is exactly an
+emcee ensemble (same moves, same acceptance rule; only the random numbers differ), the
+parts are independent Markov chains, and the diagnostics and convergence verdict per
+part are [`sample_posterior`][]'s. Validated against emcee on the same posteriors.
 
-Moves: the package's one vocabulary (`piecs_bayes.fit.mcmc._moves`): `"stretch"`
-(Goodman & Weare, `a = 2`, emcee's `StretchMove`) or `"de"`: 80 % differential
-evolution (emcee's `DEMove`, $\gamma_0 = 2.38/\sqrt{2d}$, $\sigma_\gamma = 10^{-5}$)
-and 20 % stretch, the same mixture [`sample_posterior`][] hands to emcee. The
-move is drawn per ensemble and step.
-Validated against emcee on the same posteriors (`tests/fit/test_batch.py`,
-`benchmarks/bench_scale.py`).
-
-Diagnostics per part are [`sample_posterior`][]'s: split $\hat R$ across the
-part's ensembles, $\tau$, ESS and the same convergence verdict.
+Why parts never share an ensemble: docs/models/sampling.md.
 """
 
 from __future__ import annotations

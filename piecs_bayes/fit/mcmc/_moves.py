@@ -1,28 +1,15 @@
 r"""One vocabulary of ensemble moves for every sampler the package offers.
 
-A move set is named once here and means the same mixture in
+A move set is named once here (`MOVES`) and means the same mixture in
 [`sample_posterior`][piecs_bayes.fit.sample_posterior] (emcee itself) and in
-[`sample_posteriors`][piecs_bayes.fit.sample_posteriors] (the lockstep
-ensembles, emcee's moves re-implemented in NumPy and JAX):
+[`sample_posteriors`][piecs_bayes.fit.sample_posteriors] (the lockstep ensembles):
+`"stretch"` (Goodman & Weare, $a = 2$, emcee's `StretchMove`) or `"de"` (80 %
+differential evolution, emcee's `DEMove` with $\gamma_0 = 2.38/\sqrt{2d}$, and 20 %
+stretch), drawn per ensemble and step. [`check_moves`][] validates a name,
+[`emcee_moves`][] gives emcee's move list. emcee's snooker move is never offered (emcee
+3.1.6's is biased); [`snooker_move_is_sound`][] checks the installed emcee numerically.
 
-| name | mixture (drawn per ensemble and step) |
-|---|---|
-| `"stretch"` | Goodman & Weare stretch move, $a = 2$ (emcee's `StretchMove`) |
-| `"de"` | 80 % differential evolution (emcee's `DEMove`), 20 % stretch |
-
-The DE move is emcee's: $q = s + \gamma (c_k - c_l)$, $\gamma = \gamma_0 (1 +
-10^{-5} \xi)$, $\gamma_0 = 2.38/\sqrt{2d}$.
-
-**Why no snooker move.** emcee 3.1.6 (the newest release on the package
-registry) has a biased `DESnookerMove`: its projection direction
-`delta / sqrt(norm)` is not a unit vector, so the proposal is not the
-Ter Braak & Vrugt (2008) snooker update and detailed balance fails. Measured:
-posterior standard deviations about 6 % too small on a conjugate linear model
-(NIST Norris) while every convergence diagnostic said "converged", and 0.978
-instead of 1 on a 3-D standard normal. The move was fixed upstream after that
-release. [`snooker_move_is_sound`][] checks the installed emcee numerically; even
-when it is sound the move is not offered, so that a name means the same
-mixture in both samplers (the lockstep sampler has no snooker move).
+The moves and the snooker bug: docs/models/sampling.md, "Moves".
 """
 
 from __future__ import annotations

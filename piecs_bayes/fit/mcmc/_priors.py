@@ -1,26 +1,16 @@
-"""Prior distributions for Bayesian least squares.
+r"""Prior distributions for Bayesian least squares.
 
-Each prior is an immutable object with a JAX `log_pdf` (normalised, `-inf`
-outside the support, differentiable inside it), a NumPy `sample(rng, n)`, its
-`mean`, `sd` and `support`. They are the building blocks of a log-posterior
-$\\log p(\\theta \\mid y) = \\sum_j \\log p_j(\\theta_j) + \\log L(y \\mid \\theta)
-+ \\text{const}$.
+Each prior is an immutable object with a JAX `log_pdf` (normalised, `-inf` outside the
+support, differentiable inside it), a NumPy `sample(rng, n)`, its `mean`, `sd` and
+`support`: [`Normal`][], [`Uniform`][], [`HalfNormal`][], [`LogNormal`][],
+[`StudentT`][], [`ScaledInvChi2`][]. [`prior_from_spec`][] builds one from a study
+file's `{dist = ..., ...}` table, refusing (`InputError`, naming the file and key) an
+unknown distribution, key or value. Keys per `dist`: `normal` (`mean`, `sd`),
+`uniform` (`low`, `high`, or `mean`, `half_width`), `half_normal` (`sd`), `lognormal`
+(`mu`, `sigma` of $\log x$), `student_t` (`nu`, `loc` or `mean`, `scale`),
+`scaled_inv_chi2` (`nu`, `scale`).
 
-| `dist` in a study file | keys                        | density |
-|---|---|---|
-| `"normal"`      | `mean`, `sd`                       | $N(\\mu, \\sigma^2)$ |
-| `"uniform"`     | `low`, `high` (or `mean`, `half_width`) | $R(a, b)$ |
-| `"half_normal"` | `sd`                               | $\\lvert N(0, \\sigma^2)\\rvert$ |
-| `"lognormal"`   | `mu`, `sigma` (of $\\log x$)        | $\\log x \\sim N(\\mu, \\sigma^2)$ |
-| `"student_t"`   | `nu`, `loc` (or `mean`), `scale`   | location-scale $t_\\nu$ |
-| `"scaled_inv_chi2"` | `nu`, `scale`                  | $x^2 \\sim \\nu s^2/\\chi^2_\\nu$ |
-
-Use a normal prior for a calibrated quantity with a standard uncertainty
-(ball radius, a scale error from a laser calibration), a uniform prior for a
-quantity known only to lie within limits (a rectangular JCGM 101 input), a
-half-normal for a scale such as probe repeatability, a lognormal for a
-positive quantity known to a factor, and a Student-t when the calibration
-value itself may be off by more than its stated uncertainty.
+The densities and which prior when: docs/models/sampling.md, "Priors".
 """
 
 from __future__ import annotations

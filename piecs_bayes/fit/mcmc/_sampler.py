@@ -1,35 +1,18 @@
-"""Bayesian least squares with emcee: sampling, likelihoods and convergence checks.
+r"""Bayesian least squares with emcee: sampling, likelihoods and convergence checks.
 
-The model is a JAX scalar function `log_prob(theta, args)` (log prior plus log
-likelihood, `-inf` outside the support). `sample_posterior` jits it, vmaps it
-over walkers and hands it to `emcee.EnsembleSampler(..., vectorize=True)`,
-which gets NumPy arrays back (a vectorised call per half-ensemble instead of a
-Python call per walker: about 5x the effective samples per second). With
-`sampler="lockstep"` the same ensembles and moves run instead in one jitted JAX
-loop (`piecs_bayes.fit.mcmc._lockstep`, one part): no Python per step, the
-sampler of the main job (`fit_profile_bayes`).
+[`sample_posterior`][] samples a JAX log posterior `log_prob(theta, args)` (log prior
+plus log likelihood, `-inf` outside the support) with `n_ensembles` independent
+ensembles started around `x0`: with emcee (`vectorize=True`, the log posterior jitted
+and vmapped over walkers) or, with `sampler="lockstep"`, the same ensembles and moves in
+one jitted JAX loop (`_lockstep`). It returns a [`Posterior`][] with its diagnostics:
+split $\hat R$ with one chain per ensemble, emcee's $\tau$, the effective sample size.
+Convergence is checked, not assumed: a run is `converged` when every parameter has a
+trusted $\tau$ ($S \ge 50\,\tau$ kept steps), $\hat R \le 1.01$ and ESS $\ge 400$;
+otherwise a [`ConvergenceWarning`][] (or, with `on_fail="raise"`, a
+[`ConvergenceError`][]) says which numbers failed. [`gaussian_loglik`][] and
+[`student_t_loglik`][] are the likelihoods.
 
-**Convergence is checked, not assumed.** Walkers of one affine-invariant
-ensemble are coupled through the stretch move: they can all sit in the same
-wrong place together, so a Gelman-Rubin statistic *across walkers* says
-nothing. `sample_posterior` therefore runs `n_ensembles` (default 4)
-**independent ensembles**, each with its own random start drawn around `x0`
-and its own random stream, and computes the rank-normalised split
-$\\hat R$ of Vehtari et al. (2021, *Bayesian Analysis* 16, 667) with one
-"chain" per ensemble: the ensemble's pooled walker draws, split into the
-first and the second half of the kept steps ($2K$ half-chains for $K$
-ensembles; the maximum of the bulk and the folded-tail $\\hat R$). With
-`n_ensembles=1` only the two halves are compared: a drift check, weaker.
-
-The integrated autocorrelation time $\\tau$ is emcee's estimator (walker-
-averaged autocorrelation function, Sokal's automatic window, `c=5`) per
-ensemble; the effective sample size is $\\sum_k S W / \\tau_k$ for $S$ kept
-steps of $W$ walkers, capped at the number of draws. $\\tau$ is trusted only
-when $S \\ge 50\\,\\tau$ (emcee's advice). A run is `converged` when every
-parameter has a trusted $\\tau$, $\\hat R \\le 1.01$ and ESS $\\ge 400$
-(Vehtari et al.); otherwise a `ConvergenceWarning` (or, with
-`on_fail="raise"`, a `ConvergenceError`) says which numbers failed and what to
-change.
+Why several ensembles, and the diagnostics: docs/models/sampling.md.
 """
 
 from __future__ import annotations
