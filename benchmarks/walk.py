@@ -3,10 +3,10 @@ from the command line into the numerics.
 
 Runs `piecs-bayes ARGS` in this process under a profiler hook and records, for every
 call made inside piecs_bayes, the chain of top-level packages on its stack
-(consecutive frames of one package counted once; module bodies run by an import\nleft out; `errors` and `_config`, the floor
-every room stands on, left out). Prints each distinct chain with how often it was
-entered, the longest one, and any chain that comes back to a package it left (a call
-upward, or a callback into a room above). Exit 1 when a chain is longer than
+(consecutive frames of one package counted once; what an import runs, and `errors`
+and `_config`, the floor every room stands on, left out). Prints each distinct chain
+with how often it was entered, the longest one, and any chain that comes back to a
+package it left (a call upward, or a callback into a room above). Exit 1 when a chain is longer than
 `--max` or returns to a package.
 
     .venv/bin/python benchmarks/walk.py --max 5 -- fit data/demo/study.toml --out /tmp/w

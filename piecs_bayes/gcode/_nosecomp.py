@@ -5,10 +5,11 @@ from it, left (G41) or right (G42) of travel in the drawing frame, and the machi
 positions the controlled point, the imaginary tip (`tip_offset` by LinuxCNC's lathe
 orientations). [`compensated_path`][] gives the controlled point's moves
 ([`PathMove`][], mm, radius X) of a [`GcodeProgram`][], with `corner="arc"` (default:
-what LinuxCNC does) or `corner="extend"` (the 1969 bisector rule); a gouge or a LinuxCNC quirk the rule cannot follow raises
-`AnalysisError` naming the block. [`nose_compensate`][] rewrites the program without
-compensation (lines outside it byte-identical) and refuses G41/G42 on the material side
-(`infer_kind`, `check_comp_sides`); [`correct_radius_error`][] corrects an already
+what LinuxCNC does) or `corner="extend"` (the 1969 bisector rule); a gouge or a
+LinuxCNC quirk the rule cannot follow raises `AnalysisError` naming the block.
+[`nose_compensate`][] rewrites the program without compensation (lines outside it
+byte-identical) and refuses G41/G42 on the material side (`infer_kind`,
+`check_comp_sides`); [`correct_radius_error`][] corrects an already
 compensated path for a nose radius that differs from plan.
 
 The corner rules, tip offsets and gouges: docs/models/nose_compensation.md.
