@@ -5,7 +5,8 @@ study and returns immutable data; `piecs_bayes.export` renders and writes it.
 
 - one part (`load_probe_data`, `fit_study`, `bayes_study`, `compensate_study`,
   `toolpath_uncertainty`, `adjust_study_program`), its decision table
-  (`decide_study`) and its machine data (`error_spec`, `tool_offsets`);
+  (`decide_study`) and its machine data (`error_spec`, `tool_offsets`; both for
+  the machine files: `machine_data`);
 - the main job end to end (`run_job` -> `JobResults`);
 - many parts: batch fits (`fit_study_batch`), capability studies in chunks,
   in-process or on Dask (`capability_study`, `capability_values`), path
@@ -58,7 +59,10 @@ from ._fit import toolpath_uncertainty as toolpath_uncertainty
 from ._init import InitResult as InitResult
 from ._init import init_study as init_study
 from ._init import study_from_program as study_from_program
+from ._machine import MACHINE_ROUTES as MACHINE_ROUTES
+from ._machine import MachineData as MachineData
 from ._machine import error_spec as error_spec
+from ._machine import machine_data as machine_data
 from ._machine import tool_offsets as tool_offsets
 from ._main import run_job as run_job
 from ._options import bayes_options as bayes_options
