@@ -181,7 +181,7 @@ def _machine_files(args, study, fit, path, out, route, why, console):
     program only when the route or the alternatives need it."""
     from ..errors import PiecsError
     from ..export import write_machine_files
-    from ..jobs import adjust_study_program
+    from ..jobs import APPLY_ROUTES, adjust_study_program, machine_data
 
     adj, unavailable = None, {}
     if study.program is None:
@@ -197,9 +197,11 @@ def _machine_files(args, study, fit, path, out, route, why, console):
         else:
             console.step(f"adjusted program: {adj!r}")
     inputs = [study.path, *study.probe_files] + ([study.program] if study.program else [])
+    routes = APPLY_ROUTES if args.alternatives else (route,)
+    data = machine_data(study, fit, gain=args.gain, routes=routes)
     machine = write_machine_files(
-        study, fit, out, route=route, why=why, alternatives=args.alternatives, program=adj,
-        program_path=args.program_out, unavailable=unavailable, gain=args.gain, protect=inputs,
+        study, data, out, route=route, why=why, alternatives=args.alternatives, program=adj,
+        program_path=args.program_out, unavailable=unavailable, protect=inputs,
     )  # fmt: skip
     for line in machine.lines():
         console.say(line)

@@ -11,11 +11,8 @@ points that folder's part was probed at. Writes ``plan.json``, the gauging progr
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 from pathlib import Path
 
-from ..errors import InputError
 from . import _types as T
 
 
@@ -54,52 +51,14 @@ def register(subparsers) -> None:
     p.set_defaults(func=cmd_plan)
 
 
-def _rows(path: Path):
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            return list(csv.DictReader(fh))
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", file=str(path)) from None
-
-
-def read_more(folder: Path):
-    """`({feature: extra points}, {feature: probed nominal points})` from a fit folder's
-    decisions.json (verdict "measure more" with a count) and residuals.csv."""
-    dec = folder / "decisions.json"
-    try:
-        body = json.loads(dec.read_text(encoding="utf-8"))
-        rows = body["features"]
-        more = {
-            r["feature"]: int(r["more_points"])
-            for r in rows
-            if r.get("verdict") == "measure more" and r.get("more_points")
-        }
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", file=str(dec)) from None
-    except (ValueError, KeyError, TypeError) as exc:
-        raise InputError(f"not a decisions file of piecs-bayes: {exc}", file=str(dec)) from None
-    probed: dict[str, list] = {}
-    res = folder / "residuals.csv"
-    for i, r in enumerate(_rows(res), start=2):
-        try:
-            if r.get("outlier") in ("1", "True", "true"):
-                continue
-            probed.setdefault(r["feature"], []).append(
-                (float(r["nominal_x_radius_mm"]), float(r["nominal_z_mm"]))
-            )
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(f"bad row: {exc}", file=str(res), line=i) from None
-    return more, probed
-
-
 def cmd_plan(args, console) -> int:
     from ..export import write_plan
-    from ..io import load_study
+    from ..io import load_study, read_more_points
     from ..jobs import plan_more, plan_study
 
     study = load_study(args.study)
     if args.more is not None:
-        more, probed = read_more(args.more)
+        more, probed = read_more_points(args.more)
         if not more:
             console.say(f"{args.more}: no 'measure more' verdict with a count: nothing to plan")
             return 0

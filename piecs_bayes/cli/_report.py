@@ -170,17 +170,21 @@ def cmd_demo(args, console) -> int:
 def _machine_files(args, res, out: Path, console):
     """The chosen route's machine files (and the alternatives, on request)."""
     from ..export import write_machine_files
+    from ..jobs import APPLY_ROUTES, machine_data
 
-    unavailable = {}
+    unavailable, data = {}, None
     if "program" in res.unavailable:
         unavailable["program"] = res.unavailable["program"]
     if res.errspec is None:
         why = res.unavailable.get("errspec", "the job made no error spec")
         unavailable.update(errspec=why, tool_offset=why)
+    else:
+        routes = APPLY_ROUTES if args.alternatives else (res.apply,)
+        data = machine_data(res.study, res.fit, gain=dict(res.gains), routes=routes)
     machine = write_machine_files(
-        res.study, res.fit, out, route=res.apply, why=res.apply_why,
+        res.study, data, out, route=res.apply, why=res.apply_why,
         alternatives=args.alternatives, program=res.program, unavailable=unavailable,
-        gain=dict(res.gains), protect=[f.path for f in res.inputs],
+        protect=[f.path for f in res.inputs],
     )  # fmt: skip
     if "program" in machine.files:
         console.say(res.program.diff)

@@ -1,5 +1,6 @@
 """Read and validate what the user brings (study files, probe CSVs; programs: `gcode`),
-write a new study's text (`study_toml`), and write files atomically, never over an input."""
+read back a fit folder for `plan --more` (`read_more_points`), write a new study's text
+(`study_toml`), and write files atomically, never over an input."""
 
 from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._atomic import write_bytes_atomic as write_bytes_atomic
@@ -21,6 +22,7 @@ from ._finish import FINISH_COLUMNS as FINISH_COLUMNS
 from ._finish import FinishData as FinishData
 from ._finish import read_finish_csv as read_finish_csv
 from ._finish import read_finish_files as read_finish_files
+from ._fit_folder import read_more_points as read_more_points
 from ._frames import rows_to_dataframe as rows_to_dataframe
 from ._plausibility import PlausibilityWarning as PlausibilityWarning
 from ._plausibility import check_probe_data as check_probe_data

@@ -3,16 +3,16 @@
 Each job composes the numerical layers on a study and returns immutable data;
 `piecs_bayes.export` renders and writes it. One part: `load_probe_data`, `fit_study`,
 `bayes_study`, `compensate_study`, `toolpath_uncertainty`, `adjust_study_program`, its
-decision table (`decide_study`) and machine data (`error_spec`, `tool_offsets`); the
+decision table (`decide_study`) and machine data (`error_spec`, `tool_offsets`, both:
+`machine_data`); the
 main job end to end (`run_job` -> `JobResults`). Many parts: batch fits
 (`fit_study_batch`), capability studies in chunks, in-process or on Dask
 (`capability_study`, `capability_values`), path uncertainty of every part
 (`path_uncertainty_batch`), feedback over a run (`feedback_study`). Also: the coverage
 check of the stated uncertainty (`coverage_check`), the one translation of a study into
-the layers' settings (`fit_options`, `bayes_options`, ...), a study from a part program
-(`init_study`), the probe plan (`plan_study`), a probe's r(theta) (`calibrate_probe`)
-and the one route of the correction to the machine (`apply_route`: program, error spec
-or tool offset; never two). The simulated data sets are `piecs_bayes.simulate`'s.
+the layers' settings (`fit_options`, ...), a study from a part program (`init_study`),
+the probe plan (`plan_study`), a probe's r(theta) (`calibrate_probe`) and the one route
+of the correction to the machine (`apply_route`). Simulated data: `piecs_bayes.simulate`.
 """
 
 from .. import _config  # noqa: F401  (float64 before any JAX array)
@@ -51,7 +51,10 @@ from ._fit import toolpath_uncertainty as toolpath_uncertainty
 from ._init import InitResult as InitResult
 from ._init import init_study as init_study
 from ._init import study_from_program as study_from_program
+from ._machine import MACHINE_ROUTES as MACHINE_ROUTES
+from ._machine import MachineData as MachineData
 from ._machine import error_spec as error_spec
+from ._machine import machine_data as machine_data
 from ._machine import tool_offsets as tool_offsets
 from ._main import run_job as run_job
 from ._options import bayes_options as bayes_options

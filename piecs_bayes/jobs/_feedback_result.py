@@ -106,6 +106,12 @@ class FeedbackResult:
     def __getitem__(self, feature: str) -> FeatureFeedback:
         return self.features[feature]
 
+    @staticmethod
+    def policy_label(name: str) -> str:
+        """A policy's name with its comparison, as the tables head it (see
+        [`feedback_policy_label`][])."""
+        return feedback_policy_label(name)
+
     @property
     def steps(self) -> dict[str, tuple[str, ...]]:
         """Steps found or declared: `{first part after the step: features}`."""

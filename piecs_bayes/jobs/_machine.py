@@ -1,14 +1,16 @@
 """What to hand the machine from one fitted part: the error specification (PIECS
 option 1: correction tables along the machine axes) and the tool-offset update
-(option c). Data only; `piecs_bayes.export` writes the files (native error spec,
-LinuxCNC tables, G10 blocks) and reads them back.
+(option c), each alone or both for the machine files (`machine_data`). Data only;
+`piecs_bayes.export` writes the files (native error spec, LinuxCNC tables, G10
+blocks) and reads them back.
 """
 
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass
 
 import jax.numpy as jnp
 import numpy as np
@@ -29,6 +31,51 @@ from ._options import offset_settings, source_sds
 
 #: a line whose outward normal is within this of an axis is a diameter / a face
 _AXIAL = 1.0 - 1e-9
+
+#: the routes to the machine whose files carry machine data (see `jobs.apply_route`)
+MACHINE_ROUTES = ("errspec", "tool_offset")
+
+
+@dataclass(frozen=True, eq=False)
+class MachineData:
+    """The machine data of one fitted part, finished for
+    `export.write_compensation_outputs` / `export.write_machine_files` to write:
+    `errspec` (the [`error_spec`][]), `offsets` (the [`tool_offsets`][] update, or
+    `None` when not asked for or not possible: `notes` say why), `notes` (the
+    update's notes), `routes` (the routes of `MACHINE_ROUTES` they were made for)."""
+
+    errspec: ErrorSpec
+    offsets: ToolOffsetUpdate | None
+    notes: tuple[str, ...] = ()
+    routes: tuple[str, ...] = MACHINE_ROUTES
+
+
+def machine_data(
+    study, fit, *, gain=None, routes: Collection[str] = MACHINE_ROUTES
+) -> MachineData | None:
+    """The error spec and (when `routes` names `"tool_offset"`) the tool-offset update
+    of one fitted part, for the files of the machine routes in `routes`.
+
+    **Arguments:** `gain` for the error spec (see [`error_spec`][]); `routes` the
+    routes whose files will be written (any of `APPLY_ROUTES`; those without machine
+    data, `"program"` and `"none"`, are left out).
+
+    **Returns:** a [`MachineData`][], or `None` when `routes` names neither
+    `"errspec"` nor `"tool_offset"`. An update that cannot be made
+    (`AnalysisError`: nothing measured to update from) leaves `offsets` `None`
+    with the reason in `notes`.
+    """
+    routes = tuple(r for r in MACHINE_ROUTES if r in routes)
+    if not routes:
+        return None
+    spec = error_spec(study, fit, gain=gain)
+    upd, notes = None, ()
+    if "tool_offset" in routes:
+        try:
+            upd, notes = tool_offsets(study, fit)
+        except AnalysisError as e:
+            notes = (str(e),)
+    return MachineData(errspec=spec, offsets=upd, notes=tuple(notes), routes=routes)
 
 
 def _table_name(prefix: str, fid: str) -> str:

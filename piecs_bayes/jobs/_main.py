@@ -33,7 +33,7 @@ from ..io import load_study
 from ..uncertainty import normal_deviation_draws
 from ._apply import apply_route
 from ._capability import capability_study
-from ._decide import decide_study
+from ._decide import characteristics, decide_study
 from ._fit import (
     adjust_study_program,
     bayes_study,
@@ -434,6 +434,9 @@ def _settings(run: _Run, seed, nose_radius) -> dict:
 
 def _results(run: _Run, seed, nose_radius, tool_table, capability_files, created, part_note):
     out = run.out
+    worst = None  # without a decision table, the deviations the report shows
+    if out.get("decisions") is None:
+        worst = characteristics(run.study, run.fit, at="worst")
     return JobResults(
         study=run.study,
         part=run.fit.part,
@@ -441,6 +444,7 @@ def _results(run: _Run, seed, nose_radius, tool_table, capability_files, created
         bayes=out.get("bayes"),
         bayes_characteristics=out.get("bayes_characteristics"),
         decisions=out.get("decisions"),
+        characteristics=worst,
         gains=MappingProxyType(run.gains),
         path=out.get("path"),
         uncertainty=out.get("uncertainty"),

@@ -73,6 +73,9 @@ class JobResults:
       deviation at the decision's point, from the posterior draws.
     - `decisions`: the `DecisionTable`; `gains` the gain per feature applied to the
       path, the program and the error spec (the decisions' gains, else the study's).
+    - `characteristics`: without a decision table, by feature id, the `Characteristic`
+      at the worst point of each fitted feature (the report's deviations); `None`
+      with one (its `estimates` hold them).
     - `path`: the adjusted tool path (`AdjustedPath`).
     - `uncertainty`: `{"linearised": ToolpathUncertainty, "monte_carlo": ... or None}`.
     - `program`: the `ProgramAdjustment` (`.text`, `.diff`); `nose_radius` the nose
@@ -95,6 +98,7 @@ class JobResults:
     bayes: object | None = None
     bayes_characteristics: Mapping[str, tuple[float, float]] | None = None
     decisions: object | None = None
+    characteristics: Mapping[str, object] | None = None
     gains: Mapping[str, float] = field(default_factory=dict)
     path: object | None = None
     uncertainty: Mapping[str, object] | None = None

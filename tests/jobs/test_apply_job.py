@@ -63,14 +63,13 @@ def test_run_job_records_the_route_and_finishes_without_done(study):
 
 def test_route_file_names_are_the_files_written(study, tmp_path):
     from piecs_bayes.export import route_file_names, write_machine_files
+    from piecs_bayes.jobs import machine_data
 
     res = run_job(study, bayes=False, uncertainty=False, capability=False)
     for route in APPLY_ROUTES:
         r = replace(res, apply=route)
-        mf = write_machine_files(
-            study, res.fit, tmp_path / route, route=route, program=res.program,
-            gain=dict(res.gains),
-        )  # fmt: skip
+        data = machine_data(study, res.fit, gain=dict(res.gains), routes=(route,))
+        mf = write_machine_files(study, data, tmp_path / route, route=route, program=res.program)
         written = {p.name for p in mf.written}
         names = route_file_names(r)
         assert set(names) <= written and (bool(names) == (route != "none")), (route, names)

@@ -419,7 +419,7 @@ def _independent_comp_check(text: str) -> list[tuple[float, float, float]]:
 
 def test_compensation_outputs_are_written_and_validated(demo, tmp_path):
     study, fit = demo
-    out = E.write_compensation_outputs(study, fit, tmp_path)
+    out = E.write_compensation_outputs(study, D.machine_data(study, fit), tmp_path)
     names = {p.name for p in out.written}
     assert {"compensation.errspec.json", "compensation.x_dia_24.csv"} <= names
     assert {"linuxcnc_x.comp", "linuxcnc_z.comp", "linuxcnc_comp.ini"} <= names
@@ -472,7 +472,7 @@ def test_tool_offsets_with_current_values_nose_radius_and_block(demo, tmp_path):
     study, fit = demo
     cur = {"current_x": 0.1234, "current_z": -2.5, "current_r": 0.4, "tool": 2}
     s1 = replace(study, offsets=MappingProxyType(cur))
-    out = E.write_compensation_outputs(s1, fit, tmp_path / "a", gain=0.5)
+    out = E.write_compensation_outputs(s1, D.machine_data(s1, fit, gain=0.5), tmp_path / "a")
     g10 = (tmp_path / "a" / "tool_offsets_linuxcnc.ngc").read_text()
     assert "G10 L1 P2 X0.0862 Z-2.4893" in g10 and "G21 G7" in g10  # as the program's T0202
     off, rot = fit["dia_24"].values
@@ -492,7 +492,7 @@ def test_tool_offsets_with_current_values_nose_radius_and_block(demo, tmp_path):
     assert any("nose-radius change" in n for n in notes)
     # an error above the upper limit blocks the update: JSON only, no G10
     s3 = replace(study, offsets=MappingProxyType({"upper_limit": 0.03}))
-    out = E.write_compensation_outputs(s3, fit, tmp_path / "b")
+    out = E.write_compensation_outputs(s3, D.machine_data(s3, fit), tmp_path / "b")
     names = {p.name for p in out.written}
     assert "tool_offsets.json" in names and "tool_offsets_fanuc.ngc" not in names
     assert out.offsets.blocked and any("no G10 written" in n for n in out.notes)

@@ -21,6 +21,7 @@ from piecs_bayes.jobs import (
     adjust_study_program,
     compensate_study,
     fit_study,
+    machine_data,
     run_job,
     tool_offsets,
 )
@@ -190,7 +191,8 @@ def test_tool_offsets_target_the_programs_finish_tool(demo, tmp_path):
         "(in force on the finish-cut lines 8-14)"
     )
     cur = MappingProxyType({"current_x": 0.1, "current_z": -2.5, "current_r": 0.4})
-    write_compensation_outputs(replace(study, offsets=cur), fit, tmp_path)
+    with_cur = replace(study, offsets=cur)
+    write_compensation_outputs(with_cur, machine_data(with_cur, fit), tmp_path)
     doc = json.loads((tmp_path / "tool_offsets.json").read_text())
     assert (doc["tool"], doc["offset"]) == (2, 2) and "T0202 on line 4" in doc["tool_source"]
     fanuc = (tmp_path / "tool_offsets_fanuc.ngc").read_text()

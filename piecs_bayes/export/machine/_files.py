@@ -14,14 +14,17 @@ from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 from ...compensate import ErrorSpec, ToolOffsets, ToolOffsetUpdate
 from ...errors import AnalysisError, InputError
 from ...io import write_text_atomic
-from ...jobs import error_spec, tool_offsets
 from ._errspec import read_errspec, write_errspec
 from ._linuxcnc import read_linuxcnc_comp, write_linuxcnc_comp
 from ._offsets import g10_fanuc, g10_linuxcnc, offsets_from_json, offsets_to_json
+
+if TYPE_CHECKING:  # the type only: the job computes, this writes
+    from ...jobs import MachineData
 
 #: the mark of a file of a route that is not the one to load
 ALTERNATIVE = "alternative: do not combine"
@@ -109,17 +112,17 @@ def _ini_text(files: Mapping[str, Path], comp_type: int, units: str, refused, co
 
 def write_compensation_outputs(
     study,
-    fit,
+    data: MachineData,
     out,
     *,
-    gain=None,
     protect=(),
-    routes: Collection[str] = ("errspec", "tool_offset"),
+    routes: Collection[str] | None = None,
     alternatives: Collection[str] = (),
     chosen: str | None = None,
 ) -> CompensationOutputs:
     """Write the error spec (native JSON + CSV), the LinuxCNC table(s) and the
-    tool-offset update of one fitted part into folder `out`.
+    tool-offset update of one fitted part into folder `out`: `data` as the job
+    `jobs.machine_data` made it (for `routes`), `study` for the files' settings.
 
     Files: `compensation.errspec.json` + `compensation.<table>.csv`;
     `linuxcnc_x.comp`, `linuxcnc_z.comp` (`COMP_FILE_TYPE` from `[errspec] comp_type`,
@@ -132,13 +135,22 @@ def write_compensation_outputs(
     blocked offset update writes only the JSON (which says why).
 
     `routes` chooses what is written: `"errspec"` (the error spec and the LinuxCNC
-    files), `"tool_offset"` (the offset files). The routes in `alternatives` are
-    marked [`ALTERNATIVE`][] in each file's header, naming the route `chosen`.
+    files), `"tool_offset"` (the offset files); each one `data` was made for (default:
+    all of them, `data.routes`).
+    The routes in `alternatives` are marked [`ALTERNATIVE`][] in each file's header,
+    naming the route `chosen`.
     """
     out = Path(out)
     protect = list(protect)
+    routes = data.routes if routes is None else tuple(routes)
+    missing = [r for r in routes if r not in data.routes]
+    if missing:
+        raise ValueError(
+            f"no machine data for route(s) {', '.join(map(repr, missing))}: make it with "
+            "jobs.machine_data(..., routes=...)"
+        )
     note = alternative_note(chosen or "another")
-    spec = error_spec(study, fit, gain=gain)
+    spec = data.errspec
     written: list[Path] = []
     files: dict[str, tuple[Path, ...]] = {}
     refused: list[str] = []
@@ -149,12 +161,9 @@ def write_compensation_outputs(
         files["errspec"] = tuple(written)
     notes: list[str] = []
     upd = None
-    try:
-        if "tool_offset" in routes:
-            upd, onotes = tool_offsets(study, fit)
-            notes += onotes
-    except AnalysisError as e:
-        notes.append(str(e))
+    if "tool_offset" in routes:
+        upd = data.offsets
+        notes += data.notes
     if upd is not None:
         marked = note if "tool_offset" in alternatives else None
         files["tool_offset"] = tuple(_write_offsets(study, upd, out, protect, notes, marked))

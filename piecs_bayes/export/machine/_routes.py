@@ -20,6 +20,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 from ...compensate import ToolOffsets
 from ...errors import AnalysisError, InputError
@@ -33,6 +34,9 @@ from ._files import (
 )
 from ._linuxcnc import linuxcnc_comp_text
 from ._offsets import g10_linuxcnc
+
+if TYPE_CHECKING:  # the type only: the job computes, this writes
+    from ...jobs import MachineData
 
 #: what each route loads, in words
 ROUTE_TITLES = {
@@ -168,7 +172,7 @@ def _load_lines(mf: MachineFiles) -> list[str]:
 
 def write_machine_files(
     study,
-    fit,
+    data: MachineData | None,
     out,
     *,
     route: str,
@@ -177,7 +181,6 @@ def write_machine_files(
     program=None,
     program_path=None,
     unavailable: Mapping[str, str] | None = None,
-    gain=None,
     protect=(),
 ) -> MachineFiles:
     """Write the files of `route` (and, with `alternatives`, of the other routes,
@@ -185,14 +188,16 @@ def write_machine_files(
 
     **Arguments:**
 
-    - `study`, `fit`: the study and the fit of the part (error spec, offsets).
+    - `study`: the study (the files' settings, the program's name).
+    - `data`: the error spec and offsets of the part (`jobs.machine_data`, made for
+      the routes written), or `None` when no error-spec or tool-offset file is.
     - `route`, `why`: the route chosen (`jobs.apply_route`) and why.
     - `program`: the `ProgramAdjustment` of the program route, or `None` when there is
       none; `program_path` where it goes (default `out/<stem>_adjusted<suffix>`), its
       diff beside it (`<stem>.diff`, or the path's name + `.diff` when given).
     - `unavailable`: route -> why, for routes whose data the job could not make
       (nothing of them is written; the instructions say why).
-    - `gain`, `protect`: the gain per feature for the error spec; files never written.
+    - `protect`: files never written.
 
     **Returns:** a [`MachineFiles`][].
     """
@@ -209,18 +214,19 @@ def write_machine_files(
     want = tuple(r for r in want if r not in unavailable)
     alt = {r for r in want if r != route}
     note = alternative_note(route)
+    machine = [r for r in want if r in ("errspec", "tool_offset")]
+    if machine and data is None:
+        raise ValueError(f"no machine data for route(s) {', '.join(map(repr, machine))}")
     files: dict[str, tuple[Path, ...]] = {}
     if "program" in want:
         files["program"] = _write_program(
             study, program, out, program_path, protect, note if "program" in alt else None
         )
     comp = None
-    machine = [r for r in want if r in ("errspec", "tool_offset")]
     if machine:
         comp = write_compensation_outputs(
-            study, fit, out, gain=gain, protect=protect, routes=machine, alternatives=alt,
-            chosen=route,
-        )  # fmt: skip
+            study, data, out, protect=protect, routes=machine, alternatives=alt, chosen=route
+        )
         files.update(comp.files)
     order = [route, *(r for r in ("program", "errspec", "tool_offset") if r != route)]
     return MachineFiles(

@@ -10,7 +10,6 @@ import math
 from pathlib import Path
 
 from ...io import write_bytes_atomic, write_text_atomic
-from ...jobs import feedback_policy_label
 from ..figures import RC, feedback_figures, feedback_policy_figure, feedback_track_figure
 from ..tables import feedback_csvs, feedback_json
 from ._html import CSS, render_html_block
@@ -38,7 +37,7 @@ def _policy_table(res) -> Table:
     rows.append(["adjustments", ""] + [str(o["adjustments"]) for o in over])
     cells.append([""] * (2 + len(names)))
     return Table(
-        ["feature", "on"] + [f"{feedback_policy_label(n)} (µm)" for n in names],
+        ["feature", "on"] + [f"{res.policy_label(n)} (µm)" for n in names],
         rows,
         cells=cells,
         caption="RMS realised deviation per policy, as drawn (µm on the feature's "
@@ -65,7 +64,7 @@ def _settings_table(res) -> Table:
     names = [n for n in res.policies if n not in ("none", "full", "bayes")]
     rows = [[f.feature] + [_settings_cell(f.policies[n].settings) if n in f.policies else "–"
                            for n in names] for f in res.features.values()]  # fmt: skip
-    return Table(["feature"] + [feedback_policy_label(n) for n in names], rows,
+    return Table(["feature"] + [res.policy_label(n) for n in names], rows,
                   caption="The anchors' settings per feature ((a): the machine's one "
                   "setting; (b): tuned on this run; fixed_gain: gain, null "
                   "band and upper limit as fractions of the tolerance half-width; "

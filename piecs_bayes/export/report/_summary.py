@@ -71,18 +71,15 @@ def summary_rows(res) -> list[dict]:
     diameter for a diameter, on Z for a face, along the normal for tapers and arcs;
     `scale` times the normal deviation): nominal, tolerance, deviation with its
     expanded uncertainty U = k u (robust fit, and Bayesian when sampled), null band,
-    verdict, applied gain and correction. Lengths in µm except `nominal`."""
+    verdict, applied gain and correction. Without decisions the deviations are the
+    job's `characteristics`. Lengths in µm except `nominal`."""
     study, fit = res.study, res.fit
     dec = res.decisions
     by_dec = {}
     if dec is not None:
         for d, c in zip(dec.decisions, dec.estimates, strict=True):
             by_dec[d.feature] = (d, c)
-    chars = {}
-    if dec is None:
-        from ...jobs import characteristics
-
-        chars = characteristics(study, fit, at="worst")
+    chars = (res.characteristics or {}) if dec is None else {}
     rows = []
     for f in study.profile.features:
         row = _empty_row(f, fit, float(res.gains.get(f.id, 0.0)))

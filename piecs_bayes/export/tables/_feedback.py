@@ -111,10 +111,8 @@ def _um(x: float, signed: bool = False) -> str:
 def feedback_text(res) -> str:
     """A fixed-width summary: RMS per policy and feature (µm of δ), the steps, the
     coverage and the next part's correction (as drawn and as δ)."""
-    from ...jobs import feedback_policy_label
-
     names = list(res.policies)
-    labels = [feedback_policy_label(n) for n in names]
+    labels = [res.policy_label(n) for n in names]
     w = max(8, *(len(n) for n in labels))
     head = f"{'feature':<10}" + "".join(f"{n:>{w + 1}}" for n in labels)
     loop = getattr(res, "inspect_every", 1), getattr(res, "delay", 0)
