@@ -6,6 +6,7 @@ from ._bayes import BayesCapability as BayesCapability
 from ._capability import CapabilityResult as CapabilityResult
 from ._capability import capability as capability
 from ._indices import Interval as Interval
+from ._options import CapabilityOptions as CapabilityOptions
 from ._prediction import PredictedCapability as PredictedCapability
 from ._prediction import predict_capability as predict_capability
 from ._sigma import SigmaEstimate as SigmaEstimate

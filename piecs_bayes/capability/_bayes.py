@@ -74,10 +74,12 @@ def summarise_draws(x, level) -> tuple[float, Interval]:
     return float(q[0]), Interval(float(q[1]), float(q[2]), level)
 
 
-def bayes_capability(y, lsl, usl, target, gauge_sd, level, threshold, n_draws, seed):
+def bayes_capability(y, lsl, usl, target, gauge_sd, options):
+    """The posterior summaries of `capability` (`options`: a `CapabilityOptions`)."""
+    level, threshold = options.confidence, options.threshold
     n = y.size
     ybar, s = float(y.mean()), float(np.std(y, ddof=1))
-    _, mu, var = posterior_draws(n, ybar, s, n - 1, n_draws, seed)
+    _, mu, var = posterior_draws(n, ybar, s, n - 1, options.n_draws, options.seed)
     var_p = var - gauge_sd**2
     keep = var_p > 0.0
     discarded = 1.0 - float(keep.mean())

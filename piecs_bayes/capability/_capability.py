@@ -24,7 +24,8 @@ import numpy as np
 from ..errors import AnalysisError, InputError
 from ._bayes import BayesCapability, bayes_capability
 from ._indices import Interval, capability_indices, confidence_intervals, spec_limits
-from ._sigma import Convention, SigmaEstimate, as_groups, check_convention, sigma_within
+from ._options import CapabilityOptions
+from ._sigma import SigmaEstimate, as_groups, sigma_within
 
 
 @dataclass(frozen=True)
@@ -126,14 +127,8 @@ def capability(
     *,
     target: float | None = None,
     subgroups=None,
-    sigma_method: str = "auto",
-    confidence: float = 0.95,
     gauge_sd: float = 0.0,
-    convention: Convention = "piecs",
-    bayes: bool = True,
-    threshold: float = 1.33,
-    n_draws: int = 200_000,
-    seed: int = 0,
+    options: CapabilityOptions = CapabilityOptions(),
 ) -> CapabilityResult:
     """Capability indices Cp, Cpk, Cpm (within sigma) and Pp, Ppk (overall sigma).
 
@@ -142,23 +137,25 @@ def capability(
     - `data`: values of one characteristic (mm), see [`sigma_within`][] for layouts.
     - `lsl`, `usl`: specification limits (one may be `None`); `target` defaults to
       their mid-point (Cpm needs both limits).
-    - `sigma_method`, `convention`: see [`sigma_within`][] and the module docstring.
-    - `confidence`: level of the two-sided confidence and credible intervals.
     - `gauge_sd`: standard deviation of the measurement (repeatability) to subtract.
-    - `bayes`: also compute posterior medians/intervals and $P(C_{pk} >$ `threshold`$)$
-      from `n_draws` draws (seeded by `seed`).
+    - `options`: a [`CapabilityOptions`][]: `sigma_method` and `convention` (see
+      [`sigma_within`][] and the module docstring), `confidence` (level of the
+      two-sided confidence and credible intervals), `bayes` (also posterior
+      medians/intervals and $P(C_{pk} >$ `threshold`$)$ from `n_draws` draws seeded
+      by `seed`).
 
     **Returns:** a [`CapabilityResult`][].
 
     Raises `InputError` for bad data or limits and `AnalysisError` when the gauge
     variance swallows the process variance.
     """
-    _check_options(convention, confidence, gauge_sd)
+    _check_gauge(gauge_sd)
+    confidence, convention = options.confidence, options.convention
     lsl, usl, target = spec_limits(lsl, usl, target)
     y, groups = as_groups(data, subgroups)
     n = int(y.size)
     mu = float(np.mean(y))
-    est, s_all = _observed_sigmas(y, groups, sigma_method, convention)
+    est, s_all = _observed_sigmas(y, groups, options.sigma_method, convention)
     sig_w, nu_w = _gauge_adjust(est.value, est.df, gauge_sd, "within")
     sig_o, nu_o = _gauge_adjust(s_all, float(n - 1), gauge_sd, "overall")
     within = capability_indices(mu, sig_w, lsl, usl, target)  # cp, cpl, cpu, cpk, cpm
@@ -166,11 +163,7 @@ def capability(
     intervals = confidence_intervals(
         within, overall, n, mu, target, sig_w, nu_w, nu_o, confidence, convention
     )
-    bayes_res = (
-        bayes_capability(y, lsl, usl, target, gauge_sd, confidence, threshold, n_draws, seed)
-        if bayes
-        else None
-    )
+    bayes_res = bayes_capability(y, lsl, usl, target, gauge_sd, options) if options.bayes else None
     return CapabilityResult(
         n=n,
         mean=mu,
@@ -196,10 +189,7 @@ def capability(
     )
 
 
-def _check_options(convention: str, confidence: float, gauge_sd: float) -> None:
-    check_convention(convention)
-    if not 0.0 < confidence < 1.0:
-        raise InputError(f"confidence must be in (0, 1), got {confidence!r}", value=confidence)
+def _check_gauge(gauge_sd: float) -> None:
     if not (math.isfinite(gauge_sd) and gauge_sd >= 0.0):
         raise InputError(f"gauge_sd must be a finite number >= 0, got {gauge_sd!r}", value=gauge_sd)
 

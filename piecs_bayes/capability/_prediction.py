@@ -19,6 +19,7 @@ from ..errors import InputError
 from ._bayes import draw_indices, posterior_draws, summarise_draws
 from ._capability import CapabilityResult
 from ._indices import Interval, bissell, capability_indices
+from ._options import CapabilityOptions
 
 stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
 
@@ -64,11 +65,8 @@ def predict_capability(
     *,
     offset: float | None = None,
     u_offset: float = 0.0,
-    gain: float = 1.0,
     sigma: Literal["overall", "within"] = "overall",
-    threshold: float = 1.33,
-    n_draws: int = 200_000,
-    seed: int = 0,
+    options: CapabilityOptions = CapabilityOptions(),
 ) -> PredictedCapability:
     """Capability after a compensation that shifts the process mean by `-gain * offset`.
 
@@ -79,17 +77,18 @@ def predict_capability(
     - `u_offset`: standard uncertainty of the realised shift (mm): how far the mean may
       land from where it is aimed (adjustment resolution/repeatability, and the
       uncertainty of `offset` when it was estimated from other data than `result`).
-    - `gain`: fraction of the offset applied (1 = full compensation).
     - `sigma`: `"overall"` (default; long-term spread stays) or `"within"` (assume the
       compensation also removes the between-part drift).
+    - `options`: a [`CapabilityOptions`][]: `gain` (fraction of the offset applied, 1 =
+      full compensation), `threshold`, and `n_draws` posterior draws seeded by `seed`.
 
     **Returns:** a [`PredictedCapability`][]; the spread is unchanged, only the mean moves.
     """
     if sigma not in ("overall", "within"):
         raise InputError(f"sigma must be 'overall' or 'within', got {sigma!r}", value=sigma)
-    for name, v in (("u_offset", u_offset), ("gain", gain)):
-        if not (math.isfinite(v) and v >= 0.0):
-            raise InputError(f"{name} must be a finite number >= 0, got {v!r}", value=v)
+    if not (math.isfinite(u_offset) and u_offset >= 0.0):
+        raise InputError(f"u_offset must be a finite number >= 0, got {u_offset!r}", value=u_offset)
+    gain, threshold = options.gain, options.threshold
     if offset is None:
         if result.target is None:
             raise InputError("offset is required when the specification has no target")
@@ -109,7 +108,7 @@ def predict_capability(
     cpk_ci = bissell(cpk, n_eff, nu, z, result.confidence)
 
     nu_obs = nu / ((sd**2 / s_obs**2) ** 2) if result.gauge_sd > 0 else nu
-    rng, mu, var = posterior_draws(n, result.mean, s_obs, nu_obs, n_draws, seed)
+    rng, mu, var = posterior_draws(n, result.mean, s_obs, nu_obs, options.n_draws, options.seed)
     var_p = var - result.gauge_sd**2
     keep = var_p > 0.0
     mu = mu[keep] - gain * offset + gain * u_offset * rng.standard_normal(int(keep.sum()))

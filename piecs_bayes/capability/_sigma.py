@@ -27,13 +27,15 @@ special = _config.LazyModule("scipy.special")
 
 
 Convention = Literal["piecs", "qcc"]
-_CONVENTIONS = ("piecs", "qcc")
-_METHODS = ("auto", "rbar", "sbar", "pooled", "mr", "overall")
+#: the conventions of the table constants and degrees of freedom (module docstring)
+CONVENTIONS = ("piecs", "qcc")
+#: the within-sigma estimators of `sigma_within`
+SIGMA_METHODS = ("auto", "rbar", "sbar", "pooled", "mr", "overall")
 
 
 def check_convention(convention: str) -> None:
-    if convention not in _CONVENTIONS:
-        raise InputError(f"unknown convention {convention!r}; expected one of {_CONVENTIONS}")
+    if convention not in CONVENTIONS:
+        raise InputError(f"unknown convention {convention!r}; expected one of {CONVENTIONS}")
 
 
 # --------------------------------------------------------------------------- constants
@@ -185,8 +187,8 @@ def sigma_within(
     **Returns:** a [`SigmaEstimate`][] with its effective degrees of freedom.
     """
     check_convention(convention)
-    if method not in _METHODS:
-        raise InputError(f"unknown sigma method {method!r}; expected one of {_METHODS}")
+    if method not in SIGMA_METHODS:
+        raise InputError(f"unknown sigma method {method!r}; expected one of {SIGMA_METHODS}")
     y, groups = as_groups(data, subgroups)
     n = y.size
     if method == "auto":

@@ -18,6 +18,11 @@ import numpy as np
 from ..errors import AnalysisError, InputError
 from ._sigma import d3_constant
 
+#: the run rule's points on one side of the centre line (Western Electric)
+RUN_LENGTH = 8
+#: the trend rule's points steadily rising or falling (AIAG)
+TREND_LENGTH = 7
+
 
 @dataclass(frozen=True)
 class StabilityResult:
@@ -107,8 +112,8 @@ def stability_check(
     *,
     center: float | None = None,
     sigma: float | None = None,
-    run_length: int = 8,
-    trend_length: int = 7,
+    run_length: int = RUN_LENGTH,
+    trend_length: int = TREND_LENGTH,
 ) -> StabilityResult:
     """Individuals and moving-range chart with Western Electric / Nelson rules.
 

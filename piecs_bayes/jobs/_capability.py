@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 import numpy as np
 
 from ..capability import (
+    CapabilityOptions,
     CapabilityResult,
     PredictedCapability,
     StabilityResult,
@@ -329,16 +330,7 @@ def capability_from_values(
     parts: Mapping[str, Sequence[str]] | Sequence[str] | None = None,
     u: Mapping[str, Sequence[float]] | None = None,
     u_systematic: Mapping[str, float] | None = None,
-    characteristic: str = "mid",
-    gain: float = 1.0,
-    confidence: float = 0.95,
-    threshold: float = 1.33,
-    sigma_method: str = "auto",
-    subtract_gauge: bool = False,
-    n_draws: int = 100_000,
-    run_length: int = 8,
-    trend_length: int = 7,
-    seed: int = 0,
+    options: CapabilityOptions = CapabilityOptions(),
     study: str = "",
     method: str = "",
     notes: Sequence[str] = (),
@@ -358,10 +350,14 @@ def capability_from_values(
       diameter, ...). Without it they are studied as given (coordinate `"normal"`).
     - `parts`: part ids (one list for all features, or by feature).
     - `u`: per-part measurement uncertainties by feature (the gauge spread; subtracted
-      from the variances only with `subtract_gauge`).
+      from the variances only with `options.subtract_gauge`).
     - `u_systematic`: uncertainty of the realised mean shift by feature (mm).
-    - `gain`: fraction of the mean error the predicted compensation removes.
-    - the rest: see `compensate.capability` and `compensate.stability_check`.
+    - `options`: a [`CapabilityOptions`][piecs_bayes.capability.CapabilityOptions]:
+      the `characteristic` the values are of, the `gain` of the predicted compensation
+      (fraction of the mean error it removes), and the settings of
+      `capability.capability` and `capability.stability_check`.
+    - `study`, `method`, `notes`: the study's name, the fit method of the values and
+      notes, kept with the result.
     """
     if tolerances is None and profile is None:
         raise InputError("capability_from_values needs the tolerances or the profile")
@@ -385,10 +381,7 @@ def capability_from_values(
         try:
             feats[fid] = _feature_capability(
                 fid, y, pid, uu, tol, abs(k) * float((u_systematic or {}).get(fid, 0.0)),
-                coordinate=on, scale=k, characteristic=characteristic, gain=gain,
-                confidence=confidence, threshold=threshold, sigma_method=sigma_method,
-                subtract_gauge=subtract_gauge,
-                n_draws=n_draws, run_length=run_length, trend_length=trend_length, seed=seed,
+                coordinate=on, scale=k, options=options,
             )  # fmt: skip
         except AnalysisError as e:
             notes.append(f"{fid}: no capability: {e}")
@@ -398,7 +391,7 @@ def capability_from_values(
         parts=all_parts,
         method=method,
         features=MappingProxyType(feats),
-        confidence=confidence,
+        confidence=options.confidence,
         notes=tuple(notes),
     )
 
@@ -420,28 +413,18 @@ def _drawn(fid: str, profile, tolerances) -> tuple[str, float, tuple[float, floa
 
 
 def _feature_capability(
-    fid, y, pid, uu, tolerance, u_off, *, coordinate, scale, characteristic, gain,
-    confidence, threshold, sigma_method, subtract_gauge, n_draws, run_length,
-    trend_length, seed,
-) -> FeatureCapability:  # fmt: skip
+    fid, y, pid, uu, tolerance, u_off, *, coordinate, scale, options: CapabilityOptions
+) -> FeatureCapability:
     """One feature's capability, stability and predicted capability (see
     [`capability_from_values`][]) of the values `y` as drawn (on `coordinate`, `scale`
     times the normal deviation); `AnalysisError` when the indices cannot be had."""
     lo, hi = tolerance
-    gauge = float(np.sqrt(np.mean(uu**2))) if subtract_gauge else 0.0
-    cap = capability(
-        y,
-        lo,
-        hi,
-        sigma_method="mr" if sigma_method == "auto" else sigma_method,
-        confidence=confidence,
-        gauge_sd=gauge,
-        threshold=threshold,
-        n_draws=n_draws,
-        seed=seed,
-    )
-    stab = stability_check(y, run_length=run_length, trend_length=trend_length)
-    kw = dict(u_offset=u_off, gain=gain, threshold=threshold, n_draws=n_draws, seed=seed)
+    gauge = float(np.sqrt(np.mean(uu**2))) if options.subtract_gauge else 0.0
+    if options.sigma_method == "auto":  # individuals: the moving range
+        options = replace(options, sigma_method="mr")
+    cap = capability(y, lo, hi, gauge_sd=gauge, options=options)
+    stab = stability_check(y, run_length=options.run_length, trend_length=options.trend_length)
+    kw = dict(u_offset=u_off, options=options)
     fnotes = []
     if not stab.in_control:
         fnotes.append(
@@ -451,7 +434,7 @@ def _feature_capability(
     return FeatureCapability(
         feature=fid,
         tolerance=(float(lo), float(hi)),
-        characteristic=characteristic,
+        characteristic=options.characteristic,
         parts=pid,
         values=y,
         u=uu,
@@ -459,7 +442,7 @@ def _feature_capability(
         stability=stab,
         predicted=predict_capability(cap, sigma="overall", **kw),
         predicted_within=predict_capability(cap, sigma="within", **kw),
-        gain=float(gain),
+        gain=float(options.gain),
         notes=tuple(fnotes),
         coordinate=coordinate,
         scale=float(scale),
@@ -492,15 +475,17 @@ def capability_study(
       (one compiled call per feature kind; see `piecs_bayes.jobs.capability_values`), in this
       process or, with `scheduler` (a Dask scheduler address or `distributed.Client`),
       on a Dask cluster. Joint fits (`fit.free_transform`) are fitted part by part.
-    - `overrides`: any keyword of [`capability_from_values`][] (default: the study's
-      `[capability]` table).
+    - `seed`, `overrides`: fields of the
+      [`CapabilityOptions`][piecs_bayes.capability.CapabilityOptions] (default: the
+      study's `[capability]` table; its `gain`, the study's `[compensation] gain`).
 
     **Returns:** a [`CapabilityStudy`][], each feature as drawn (its `tolerance_on`).
     """
     probe = probe if probe is not None else load_probe_data(study, files)
-    cfg = {**study.capability, **overrides}
-    at = cfg.pop("characteristic", "mid")
-    cfg.setdefault("gain", study.compensation.gain)
+    options = CapabilityOptions(
+        **{"gain": study.compensation.gain, **study.capability, **overrides, "seed": seed}
+    )
+    at = options.characteristic
     sds = source_sds(study)
     parts = probe.parts
     if len(parts) < 3:
@@ -536,12 +521,10 @@ def capability_study(
         parts={fid: pids[fid] for fid in ordered},
         u={fid: us[fid] for fid in ordered},
         u_systematic=usys,
-        characteristic=at,
-        seed=seed,
+        options=options,
         study=study.name,
         method=used,
         notes=notes,
-        **cfg,
     )
 
 

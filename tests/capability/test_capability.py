@@ -1,11 +1,14 @@
 """Capability indices against Montgomery's piston rings, interval coverage, stability."""
 
 import math
+import re
+from dataclasses import FrozenInstanceError, replace
 
 import numpy as np
 import pytest
 
 from piecs_bayes.capability import (
+    CapabilityOptions,
     c4_constant,
     capability,
     d2_constant,
@@ -60,7 +63,9 @@ def piston_rings(reference_dir):
 def test_piston_rings_match_published_digits(piston_rings, spec):
     x, _ = piston_rings
     lsl, usl, target = spec
-    r = capability(x, lsl, usl, target=target, convention="qcc", bayes=False)
+    r = capability(
+        x, lsl, usl, target=target, options=CapabilityOptions(convention="qcc", bayes=False)
+    )
     assert _printed(r.sigma_within, "0.009785039")
     assert _printed(r.mean, "74.00118")
     assert r.n == 125 and r.n_subgroups == 25 and r.subgroup_size == 5
@@ -74,7 +79,9 @@ def test_piston_rings_match_published_digits(piston_rings, spec):
 
 def test_piston_rings_overall_and_bayes(piston_rings):
     x, _ = piston_rings
-    r = capability(x, 73.95, 74.05, convention="qcc", n_draws=400_000, seed=3)
+    r = capability(
+        x, 73.95, 74.05, options=CapabilityOptions(convention="qcc", n_draws=400_000, seed=3)
+    )
     # self-computed in the reference header: overall s = 0.0100700, Pp 1.65509, Ppk 1.61616
     assert _printed(r.sigma_overall, "0.0100700")
     assert _printed(r.pp, "1.65509") and _printed(r.ppk, "1.61616")
@@ -91,8 +98,8 @@ def test_piston_rings_overall_and_bayes(piston_rings):
 
 def test_piecs_convention_is_exact_and_wider(piston_rings):
     x, _ = piston_rings
-    qcc = capability(x, 73.95, 74.05, convention="qcc", bayes=False)
-    exact = capability(x, 73.95, 74.05, bayes=False)
+    qcc = capability(x, 73.95, 74.05, options=CapabilityOptions(convention="qcc", bayes=False))
+    exact = capability(x, 73.95, 74.05, options=CapabilityOptions(bayes=False))
     # exact d2(5) = 2.325929 instead of the table's 2.326
     assert d2_constant(5) == pytest.approx(2.3259289473, abs=1e-10)
     assert d2_constant(5, convention="qcc") == 2.326
@@ -129,7 +136,9 @@ def test_interval_coverage_by_simulation(label, shape, kw):
     cpk_true = min(usl - mu, mu - lsl) / (3 * sig)
     hit_cp = hit_cpk = 0
     for _ in range(reps):
-        r = capability(rng.normal(mu, sig, shape), lsl, usl, bayes=False, **kw)
+        r = capability(
+            rng.normal(mu, sig, shape), lsl, usl, options=CapabilityOptions(bayes=False, **kw)
+        )
         hit_cp += cp_true in r.cp_ci
         hit_cpk += cpk_true in r.cpk_ci
     mc = 3 * math.sqrt(0.95 * 0.05 / reps)  # 3 Monte Carlo standard errors: 0.017
@@ -143,44 +152,49 @@ def test_qcc_degrees_of_freedom_undercover_with_moving_ranges():
     for _ in range(800):
         x = rng.normal(0.0, 0.01, 60)
         for conv in hits:
-            hits[conv] += 1.0 in capability(x, -0.03, 0.03, convention=conv, bayes=False).cp_ci
+            opts = CapabilityOptions(convention=conv, bayes=False)
+            hits[conv] += 1.0 in capability(x, -0.03, 0.03, options=opts).cp_ci
     assert hits["qcc"] / 800 < 0.92 < hits["piecs"] / 800
 
 
 def test_bayes_probability_and_gauge_subtraction():
     rng = np.random.default_rng(11)
     x = rng.normal(0.0, 0.004, 80)
-    r0 = capability(x, -0.02, 0.02, sigma_method="overall", seed=1)
-    r1 = capability(x, -0.02, 0.02, sigma_method="overall", gauge_sd=0.002, seed=1)
+    opts = CapabilityOptions(sigma_method="overall", n_draws=200_000, seed=1)
+    r0 = capability(x, -0.02, 0.02, options=opts)
+    r1 = capability(x, -0.02, 0.02, gauge_sd=0.002, options=opts)
     assert r1.sigma_overall == pytest.approx(math.sqrt(r0.sigma_overall**2 - 0.002**2))
     assert r1.cp > r0.cp and r1.bayes.p_cpk_above > r0.bayes.p_cpk_above
     # effective df after subtraction: nu * (sigma_p^2 / sigma^2)^2
     ratio = r1.sigma_overall**2 / r0.sigma_overall**2
     assert r1.df_overall == pytest.approx(79 * ratio**2)
     with pytest.raises(AnalysisError, match="gauge variance"):
-        capability(x, -0.02, 0.02, gauge_sd=0.01)
+        capability(x, -0.02, 0.02, gauge_sd=0.01, options=CapabilityOptions(n_draws=200_000))
 
 
 def test_predicted_capability_after_centering():
     rng = np.random.default_rng(5)
     x = rng.normal(0.006, 0.002, 50)  # off-centre: Cpk well below Cp
-    r = capability(x, -0.01, 0.01, sigma_method="overall", seed=2)
-    p = predict_capability(r, seed=2)
+    r = capability(
+        x, -0.01, 0.01, options=CapabilityOptions(sigma_method="overall", n_draws=200_000, seed=2)
+    )
+    opts = CapabilityOptions(n_draws=200_000, seed=2)
+    p = predict_capability(r, options=opts)
     assert p.mean_after == pytest.approx(0.0, abs=1e-15)
     assert p.cpk == pytest.approx(r.pp, rel=1e-12)  # centred: Cpk = Cp
     assert p.cpk > 2 * r.ppk and p.p_cpk_above > r.bayes.p_cpk_above
     assert p.cpk_ci.lower < p.cpk < p.cpk_ci.upper
     # an uncertain shift widens the interval and lowers the probability
-    q = predict_capability(r, u_offset=0.002, seed=2)
+    q = predict_capability(r, u_offset=0.002, options=opts)
     assert q.cpk_ci.upper - q.cpk_ci.lower > p.cpk_ci.upper - p.cpk_ci.lower
     assert q.p_cpk_above < p.p_cpk_above
-    half = predict_capability(r, gain=0.5, seed=2)
+    half = predict_capability(r, options=replace(opts, gain=0.5))
     assert half.mean_after == pytest.approx(r.mean / 2)
 
 
 def test_one_sided_specification():
     x = np.random.default_rng(3).normal(1.0, 0.1, 40)
-    r = capability(x, usl=1.5, bayes=False)
+    r = capability(x, usl=1.5, options=CapabilityOptions(bayes=False))
     assert math.isnan(r.cp) and math.isnan(r.cpm) and math.isnan(r.cpl)
     assert r.cpk == r.cpu == pytest.approx((1.5 - r.mean) / (3 * r.sigma_within))
 
@@ -210,7 +224,7 @@ def test_bad_input_is_named():
     with pytest.raises(InputError, match="at least one specification limit"):
         capability([1.0, 2.0, 3.0])
     with pytest.raises(InputError, match="unknown convention"):
-        capability([1.0, 2.0, 3.0], 0, 4, convention="minitab")
+        capability([1.0, 2.0, 3.0], 0, 4, options=CapabilityOptions(convention="minitab"))
 
 
 def test_stability_finds_a_step_change():
@@ -274,8 +288,8 @@ def test_indices_do_not_change_with_the_drawn_scale(k):
     rng = np.random.default_rng(15)
     y = rng.normal(0.003, 0.002, 30)
     lo, hi = -0.004, 0.010
-    a = capability(y, lo, hi, n_draws=100_000)
-    b = capability(k * y, *sorted((k * lo, k * hi)), n_draws=100_000)
+    a = capability(y, lo, hi)
+    b = capability(k * y, *sorted((k * lo, k * hi)))
     for name in ("cp", "cpk", "pp", "ppk", "cpm"):
         assert getattr(b, name) == pytest.approx(getattr(a, name), rel=1e-12), name
         ci_a, ci_b = tuple(getattr(a, f"{name}_ci")), tuple(getattr(b, f"{name}_ci"))
@@ -287,6 +301,57 @@ def test_indices_do_not_change_with_the_drawn_scale(k):
     # Bayesian: Cp in closed form; Cpk from draws that mirror with the sign (Monte Carlo)
     assert b.bayes.cp == pytest.approx(a.bayes.cp, rel=1e-12)
     assert b.bayes.cpk == pytest.approx(a.bayes.cpk, rel=5e-3)
-    p, q = predict_capability(a, u_offset=2e-4), predict_capability(b, u_offset=abs(k) * 2e-4)
+    opts = CapabilityOptions(n_draws=200_000)
+    p = predict_capability(a, u_offset=2e-4, options=opts)
+    q = predict_capability(b, u_offset=abs(k) * 2e-4, options=opts)
     assert q.cpk == pytest.approx(p.cpk, rel=1e-12)
     assert q.mean_after == pytest.approx(k * p.mean_after, abs=1e-15)
+
+
+def test_capability_options_keep_the_defaults_of_both_entry_points():
+    # one default each: those of the capability job (`capability_from_values`, the
+    # study file's [capability] table); `capability` and `predict_capability` drew
+    # 200,000 by default and are given that where it is wanted
+    o = CapabilityOptions()
+    assert (o.characteristic, o.confidence, o.threshold, o.sigma_method, o.convention) == (
+        "mid", 0.95, 1.33, "auto", "piecs"
+    )  # fmt: skip
+    assert (o.subtract_gauge, o.gain, o.bayes, o.n_draws, o.seed) == (False, 1.0, True, 100_000, 0)
+    assert (o.run_length, o.trend_length) == (8, 7)
+    defaults = stability_check.__kwdefaults__
+    assert (defaults["run_length"], defaults["trend_length"]) == (o.run_length, o.trend_length)
+    with pytest.raises(FrozenInstanceError):
+        o.n_draws = 10  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        (
+            {"confidence": 1.0},
+            "capability option 'confidence': expected a number in (0, 1), got 1.0",
+        ),
+        (
+            {"threshold": math.nan},
+            "capability option 'threshold': expected a finite number, got nan",
+        ),
+        ({"gain": -0.5}, "capability option 'gain': expected a finite number >= 0, got -0.5"),
+        ({"n_draws": 0}, "capability option 'n_draws': expected an integer >= 1, got 0"),
+        ({"n_draws": 1e5}, "capability option 'n_draws': expected an integer >= 1, got 100000.0"),
+        ({"seed": -1}, "capability option 'seed': expected an integer >= 0, got -1"),
+        ({"run_length": 1}, "capability option 'run_length': expected an integer >= 2, got 1"),
+        ({"bayes": "yes"}, "capability option 'bayes': expected true or false, got 'yes'"),
+        (
+            {"sigma_method": "range"},
+            "capability option 'sigma_method': unknown sigma method 'range'",
+        ),
+        ({"convention": "minitab"}, "capability option 'convention': unknown convention 'minitab'"),
+        (
+            {"characteristic": "worst"},
+            "unknown characteristic 'worst'; expected one of 'mid', 'start', 'end'",
+        ),
+    ],
+)
+def test_capability_options_refuse_a_bad_value_by_name(kw, message):
+    with pytest.raises(InputError, match=re.escape(message)):
+        CapabilityOptions(**kw)

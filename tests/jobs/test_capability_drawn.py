@@ -13,7 +13,7 @@ import pytest
 
 import piecs_bayes.export as E
 import piecs_bayes.jobs as D
-from piecs_bayes.capability import d2_constant
+from piecs_bayes.capability import CapabilityOptions, d2_constant
 from piecs_bayes.errors import InputError
 from piecs_bayes.geometry import Profile, drawn_limits, drawn_scale, make_feature, profile_side
 from piecs_bayes.io import load_study
@@ -78,7 +78,7 @@ def test_indices_on_the_drawn_coordinate_match_hand_computation():
     rng = np.random.default_rng(15)
     truth = {"dia": (0.004, 0.0015), "face": (-0.006, 0.004), "taper": (0.002, 0.003)}
     delta = {f: rng.normal(m, s, 25) for f, (m, s) in truth.items()}
-    cs = D.capability_from_values(delta, profile=SHAFT, n_draws=20_000)
+    cs = D.capability_from_values(delta, profile=SHAFT, options=CapabilityOptions(n_draws=20_000))
     assert {f: cs[f].coordinate for f in cs.features} == {
         "dia": "diameter", "face": "length", "taper": "normal"
     }  # fmt: skip
@@ -109,7 +109,7 @@ def test_a_drawn_scale_keeps_cp_and_cpk(profile, fid):
     y = np.r_[rng.normal(0.003, 0.001, 14), rng.normal(-0.002, 0.001, 14)]
     u = np.full(y.size, 3e-4)
     ids = [f"p{i:02d}" for i in range(y.size)]
-    kw = dict(u={fid: u}, u_systematic={fid: 2e-4}, n_draws=100_000, parts=ids)
+    kw = dict(u={fid: u}, u_systematic={fid: 2e-4}, parts=ids)
     drawn = D.capability_from_values({fid: y}, profile=profile, **kw)[fid]
     normal = D.capability_from_values({fid: y}, {fid: feat.tolerance}, **kw)[fid]
     assert normal.coordinate == "normal" and normal.scale == 1.0

@@ -18,6 +18,7 @@ import pytest
 import piecs_bayes.export as E
 import piecs_bayes.jobs as D
 import piecs_bayes.uncertainty as U
+from piecs_bayes.capability import CapabilityOptions
 from piecs_bayes.cli import main
 from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.export import (
@@ -383,7 +384,7 @@ def test_capability_from_values_is_pure():
         {"d": y, "short": [0.0, 0.001]},
         {"d": (-0.01, 0.01), "short": (-0.01, 0.01)},
         parts={"d": [f"p{i:02d}" for i in range(30)], "short": ["p00", "p01"]},
-        n_draws=5000,
+        options=CapabilityOptions(n_draws=5000),
     )
     assert cs["d"].step_part == "p15"
     assert any("short: only 2 value(s)" in n for n in cs.notes)
