@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 from piecs_bayes.io import ProbeCalibration
-from piecs_bayes.jobs import coverage_check
+from piecs_bayes.jobs import CoverageOptions, coverage_check
 from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
@@ -73,11 +73,11 @@ def probe_rows(parts: int) -> list:
             if not calibrated:
                 src["ball_radius"] = 0.0005
             t0 = time.perf_counter()
-            res = coverage_check(
-                profile, truth, n_parts=parts, points=points, margin=margin,
+            res = coverage_check(profile, truth, CoverageOptions(
+                n_parts=parts, points=points, margin=margin,
                 transform=DEMO_TRANSFORM, source_sd=src, probe=LOBING, calibrated=calibrated,
                 seed=2027,
-            )  # fmt: skip
+            ))  # fmt: skip
             label = f"{name}, {'calibrated' if calibrated else 'one radius'}"
             print(f"\n== lobing probe, {label} ({time.perf_counter() - t0:.0f} s)")
             print(res.table(), flush=True)
@@ -117,12 +117,12 @@ def main(argv=None) -> int:
             continue
         for known in {"both": (False, True), "pooled": (False,), "known": (True,)}[args.sigma]:
             t0 = time.perf_counter()
-            res = coverage_check(
-                profile, truth, n_parts=args.parts, points=points, margin=margin,
+            res = coverage_check(profile, truth, CoverageOptions(
+                n_parts=args.parts, points=points, margin=margin,
                 transform=DEMO_TRANSFORM, source_sd=SOURCES, known_sigma=known,
                 bayes=not args.no_bayes, bayes_steps=args.steps, bayes_walkers=args.walkers,
                 seed=2026,
-            )  # fmt: skip
+            ))  # fmt: skip
             wall = time.perf_counter() - t0
             label = f"{name}, {'known sigma' if known else 'pooled sigma (default)'}"
             print(f"\n== {label} ({wall:.0f} s; probe sigma dof {res.sigma_dof})")

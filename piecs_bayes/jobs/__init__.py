@@ -28,6 +28,7 @@ from ._capability import CapabilityStudy as CapabilityStudy
 from ._capability import FeatureCapability as FeatureCapability
 from ._capability import capability_from_values as capability_from_values
 from ._capability import capability_study as capability_study
+from ._coverage import CoverageOptions as CoverageOptions
 from ._coverage import CoverageResult as CoverageResult
 from ._coverage import coverage_check as coverage_check
 from ._decide import DecisionTable as DecisionTable

@@ -18,10 +18,13 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from numbers import Integral, Real
 
 import numpy as np
 
+from ..errors import InputError
 from ..geometry import MachineTransform, Profile
 from ..uncertainty import linearised_toolpath, monte_carlo_toolpath, path_function, path_grid
 from ._probe_radius import calibrated_points, radius_components
@@ -76,45 +79,23 @@ def _hits(u, truth_dev, true_v, true_o, fixed):
     return dev_hits, vert, band
 
 
-def coverage_check(
-    profile: Profile,
-    truth: dict,
-    *,
-    n_parts: int = 1000,
-    points: int | dict = 8,
-    noise_sd: float = 0.0015,
-    ball_radius: float = 1.0,
-    transform: MachineTransform = MachineTransform(),
-    source_sd: dict | None = None,
-    known_sigma: bool = False,
-    declared_dof: float = 8.0,
-    method: str = "robust",
-    loss: str = "huber",
-    margin: float = 0.1,
-    p: float = 0.95,
-    bayes: bool = False,
-    bayes_steps: int = 1500,
-    bayes_walkers: int | None = None,
-    band_sims: int = 2**15,
-    bayes_chunk: int = 100,
-    seed: int = 0,
-    probe=None,
-    calibrated: bool = False,
-) -> CoverageResult:
-    """Simulate `n_parts`, fit and propagate them at the given settings, count coverage.
+@dataclass(frozen=True)
+class CoverageOptions:
+    """The settings of a [`coverage_check`][]: how the parts are probed, fitted,
+    propagated and counted.
 
-    **Arguments:**
-
-    - `truth`: the true deviation per feature id (every part).
+    - `n_parts`: simulated parts; `seed`: their noise, machine errors and chains.
     - `points`, `noise_sd`, `ball_radius`, `transform`, `margin`: the probing
       (`simulate_parts`); the declared repeatability is `noise_sd`.
     - `source_sd`: per-part machine errors actually drawn (normal) and declared to
       the propagation with the same sds (`SIMULATED_SOURCES`).
     - `known_sigma`, `declared_dof`, `method`, `loss`: the fit settings (a study's
       `[fit] known_sigma`, `[probe] repeatability_dof`, `[fit] method`, `loss`).
+    - `p`: the level of the intervals and bands counted.
     - `bayes`: also sample every part's posterior (lockstep ensembles, one ensemble
       per part; the probe sigma estimated with the declared prior unless known) and
-      count the Monte Carlo intervals and bands.
+      count the Monte Carlo intervals and bands: `bayes_steps` steps of
+      `bayes_walkers` walkers (default: the sampler's).
     - `bayes_chunk`: parts sampled together (memory: the lockstep sampler holds their
       whole chains, parts x walkers x steps x parameters x 8 bytes, until it thins).
     - `band_sims`: quasi-random draws for each linearised band's critical value
@@ -125,13 +106,89 @@ def coverage_check(
       part's real probe differs from it by a draw of that covariance (so that the
       count includes the calibration's own error); without, they are fitted with
       one radius, `ball_radius`, as if nobody had calibrated.
+    """
+
+    n_parts: int = 1000
+    points: int | Mapping = 8
+    noise_sd: float = 0.0015
+    ball_radius: float = 1.0
+    transform: MachineTransform = MachineTransform()
+    margin: float = 0.1
+    source_sd: Mapping[str, float] | None = None
+    known_sigma: bool = False
+    declared_dof: float = 8.0
+    method: str = "robust"
+    loss: str = "huber"
+    p: float = 0.95
+    bayes: bool = False
+    bayes_steps: int = 1500
+    bayes_walkers: int | None = None
+    bayes_chunk: int = 100
+    band_sims: int = 2**15
+    seed: int = 0
+    probe: object = None
+    calibrated: bool = False
+
+    def __post_init__(self):
+        for name, least in (("n_parts", 1), ("bayes_steps", 1), ("bayes_chunk", 1),
+                            ("band_sims", 1), ("seed", 0)):  # fmt: skip
+            _integer(name, getattr(self, name), least)
+        if self.bayes_walkers is not None:
+            _integer("bayes_walkers", self.bayes_walkers, 2)
+        if not isinstance(self.points, Mapping):
+            _integer("points", self.points, 1)
+        for name, ok, expected in (
+            ("noise_sd", lambda v: v > 0.0, "a finite number > 0"),
+            ("ball_radius", lambda v: v > 0.0, "a finite number > 0"),
+            ("margin", lambda v: 0.0 <= v < 0.5, "a number in [0, 0.5)"),
+            ("declared_dof", lambda v: v > 0.0, "a finite number > 0"),
+            ("p", lambda v: 0.0 < v < 1.0, "a number in (0, 1)"),
+        ):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, Real) or not math.isfinite(v) or not ok(v):
+                _refuse(name, expected, v)
+        for name in ("known_sigma", "bayes", "calibrated"):
+            if not isinstance(getattr(self, name), bool):
+                _refuse(name, "true or false", getattr(self, name))
+        if self.method not in ("lsq", "robust"):
+            _refuse("method", "'lsq' or 'robust'", self.method)
+
+
+def _refuse(name: str, expected: str, value) -> None:
+    raise InputError(f"coverage option {name!r}: expected {expected}, got {value!r}", value=value)
+
+
+def _integer(name: str, value, least: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, Integral) or value < least:
+        _refuse(name, f"an integer >= {least}", value)
+
+
+def coverage_check(
+    profile: Profile, truth: dict, options: CoverageOptions = CoverageOptions()
+) -> CoverageResult:
+    """Simulate `options.n_parts` parts, fit and propagate them at the given settings,
+    count coverage.
+
+    **Arguments:**
+
+    - `profile`: the nominal profile of every part.
+    - `truth`: the true deviation per feature id (every part).
+    - `options`: a [`CoverageOptions`][]: the probing, the fit, the routes and the count.
 
     **Returns:** a [`CoverageResult`][].
     """
     from ..fit import TUNING, fit_profiles, to_part_frame
     from ..simulate import simulate_parts
 
-    source_sd = dict(source_sd or {})
+    o = options
+    n_parts, points, noise_sd, ball_radius, transform = (
+        o.n_parts, o.points, o.noise_sd, o.ball_radius, o.transform
+    )  # fmt: skip
+    known_sigma, declared_dof, method, loss, margin, p = (
+        o.known_sigma, o.declared_dof, o.method, o.loss, o.margin, o.p
+    )  # fmt: skip
+    band_sims, seed, probe, calibrated = o.band_sims, o.seed, o.probe, o.calibrated
+    source_sd = dict(o.source_sd or {})
     sim = simulate_parts(
         profile, truth, n_parts, ball_radius=ball_radius, transform=transform, points=points,
         noise_sd=noise_sd, source_sd=source_sd, rng=seed, margin=margin, probe=probe,
@@ -171,13 +228,10 @@ def coverage_check(
             loss=loss if method == "robust" else "linear", radius=radius,
         )  # fmt: skip
         routes["linearised"].append(_hits(u, truth_dev, true_v, true_o, fixed))
-    if bayes:
+    if o.bayes:
         routes["monte_carlo"] = _monte_carlo_hits(
-            profile, sim, bf, keep, values, truth_dev, true_v, true_o, fixed, grid,
-            source_sd=prop_sd, known_sigma=known_sigma, declared_dof=declared_dof,
-            noise_sd=noise_sd, ball_radius=ball_radius, transform=transform, p=p,
-            bayes_steps=bayes_steps, bayes_walkers=bayes_walkers, bayes_chunk=bayes_chunk,
-            seed=seed, radius=radius,
+            profile, sim, bf, (truth_dev, true_v, true_o, fixed), grid, o,
+            source_sd=prop_sd, ball_radius=ball_radius, radius=radius,
         )  # fmt: skip
     rates, per_feature = _rates(routes, feats)
     settings = {
@@ -208,15 +262,21 @@ def _rates(routes: dict, feats) -> tuple[dict, dict]:
 
 
 def _monte_carlo_hits(
-    profile, sim, bf, keep, values, truth_dev, true_v, true_o, fixed, grid, *, source_sd,
-    known_sigma, declared_dof, noise_sd, ball_radius, transform, p, bayes_steps, bayes_walkers,
-    bayes_chunk, seed, radius=None,
-) -> list:  # fmt: skip
+    profile, sim, bf, target, grid, options: CoverageOptions, *, source_sd, ball_radius, radius
+) -> list:
     """Every part's posterior (lockstep ensembles, one per part; the probe sigma
     estimated with the declared prior unless known) and the hits of its Monte Carlo
-    intervals and bands, sampled in chunks of `bayes_chunk` parts."""
+    intervals and bands (`target`: the truth as `_hits` takes it), sampled in chunks
+    of `options.bayes_chunk` parts; `source_sd`, `ball_radius`, `radius`: those the
+    parts were fitted with."""
     from ..fit import fit_profiles_bayes
 
+    o = options
+    noise_sd, transform, seed, bayes_chunk = o.noise_sd, o.transform, o.seed, o.bayes_chunk
+    bayes_steps, bayes_walkers = o.bayes_steps, o.bayes_walkers
+    known_sigma, declared_dof = o.known_sigma, o.declared_dof
+    keep = ~bf.outlier_mask
+    values = {f.id: bf.values(f.id) for f in profile.features}
     sources = {n: {"dist": "normal", "mean": 0.0, "sd": sd} for n, sd in source_sd.items()}
     if not known_sigma:
         sources["repeatability"] = {
@@ -239,6 +299,6 @@ def _monte_carlo_hits(
                 radius=radius, inlier=keep[sel],
             )  # fmt: skip
         for post in posts.values():
-            u = monte_carlo_toolpath(profile, post.deviation_samples, grid=grid, p=p)
-            hits.append(_hits(u, truth_dev, true_v, true_o, fixed))
+            u = monte_carlo_toolpath(profile, post.deviation_samples, grid=grid, p=o.p)
+            hits.append(_hits(u, *target))
     return hits

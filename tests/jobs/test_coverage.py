@@ -17,10 +17,14 @@ Before the pooled rule, these few-point parts gave parameter coverage far below
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
-from piecs_bayes.jobs import coverage_check
+from piecs_bayes.errors import InputError
+from piecs_bayes.geometry import MachineTransform
+from piecs_bayes.jobs import CoverageOptions, coverage_check
 from piecs_bayes.simulate import DEMO_ERRORS, DEMO_TRANSFORM, demo_profile, process_deviations
 
 PROFILE = demo_profile()
@@ -36,11 +40,11 @@ BAND_SIMS = 2**13
 
 
 def _check(known_sigma, n_parts, window, *, bayes=False, seed=0):
-    res = coverage_check(
-        PROFILE, TRUTH, n_parts=n_parts, points=FEW, margin=MARGIN, transform=DEMO_TRANSFORM,
+    res = coverage_check(PROFILE, TRUTH, CoverageOptions(
+        n_parts=n_parts, points=FEW, margin=MARGIN, transform=DEMO_TRANSFORM,
         source_sd=SOURCES, known_sigma=known_sigma, bayes=bayes, bayes_walkers=44,
         bayes_steps=1500, band_sims=BAND_SIMS, seed=seed,
-    )  # fmt: skip
+    ))  # fmt: skip
     lo, hi = window
     for route, rates in res.rates.items():
         for kind, rate in rates.items():
@@ -63,3 +67,39 @@ def test_monte_carlo_from_the_posterior_covers_too():
     the benchmark): the window is 3 binomial sds of a rate at n = 200."""
     half = 3.0 * np.sqrt(0.95 * 0.05 / 200)
     _check(False, 200, (0.95 - half, 0.95 + half), bayes=True, seed=3)
+
+
+def test_coverage_options_keep_the_defaults():
+    o = CoverageOptions()
+    assert (o.n_parts, o.points, o.noise_sd, o.ball_radius, o.margin, o.source_sd) == (
+        1000, 8, 0.0015, 1.0, 0.1, None
+    )  # fmt: skip
+    assert o.transform == MachineTransform()
+    assert (o.known_sigma, o.declared_dof, o.method, o.loss, o.p) == (
+        False, 8.0, "robust", "huber", 0.95
+    )  # fmt: skip
+    assert (o.bayes, o.bayes_steps, o.bayes_walkers, o.bayes_chunk, o.band_sims) == (
+        False, 1500, None, 100, 2**15
+    )  # fmt: skip
+    assert (o.seed, o.probe, o.calibrated) == (0, None, False)
+
+
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"n_parts": 0}, "coverage option 'n_parts': expected an integer >= 1, got 0"),
+        ({"points": 2.5}, "coverage option 'points': expected an integer >= 1, got 2.5"),
+        (
+            {"noise_sd": -0.001},
+            "coverage option 'noise_sd': expected a finite number > 0, got -0.001",
+        ),
+        ({"margin": 0.5}, "coverage option 'margin': expected a number in [0, 0.5), got 0.5"),
+        ({"p": 95}, "coverage option 'p': expected a number in (0, 1), got 95"),
+        ({"bayes_walkers": 1}, "coverage option 'bayes_walkers': expected an integer >= 2, got 1"),
+        ({"calibrated": 1}, "coverage option 'calibrated': expected true or false, got 1"),
+        ({"method": "bayes"}, "coverage option 'method': expected 'lsq' or 'robust', got 'bayes'"),
+    ],
+)
+def test_coverage_options_refuse_a_bad_value_by_name(kw, message):
+    with pytest.raises(InputError, match=re.escape(message)):
+        CoverageOptions(**kw)

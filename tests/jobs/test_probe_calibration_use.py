@@ -21,6 +21,7 @@ from piecs_bayes.errors import InputError
 from piecs_bayes.fit import CALIBRATION_SOURCE, RadiusComponents, fit_profiles, to_part_frame
 from piecs_bayes.io import approach_angle, load_study
 from piecs_bayes.jobs import (
+    CoverageOptions,
     approach_directions,
     calibrated_points,
     coverage_check,
@@ -112,11 +113,11 @@ def test_coverage_with_and_without_the_calibration():
     (3.8 %); benchmarks/bench_calibration.py --probe counts 1,000."""
     kw = dict(points=FEW, margin=0.12, transform=DEMO_TRANSFORM, band_sims=2**13,
               probe=LOBING, seed=5)  # fmt: skip
-    plain = coverage_check(PROFILE, TRUTH, calibrated=False, n_parts=100,
-                           source_sd={"x_centre": 0.001, "ball_radius": 0.0005}, **kw)  # fmt: skip
+    plain = coverage_check(PROFILE, TRUTH, CoverageOptions(calibrated=False, n_parts=100,
+                           source_sd={"x_centre": 0.001, "ball_radius": 0.0005}, **kw))  # fmt: skip
     assert plain.rates["linearised"]["parameters"] < 0.90, plain.table()
-    cal = coverage_check(PROFILE, TRUTH, calibrated=True, n_parts=300, source_sd={"x_centre": 0.001},
-                         **kw)  # fmt: skip
+    cal = coverage_check(PROFILE, TRUTH, CoverageOptions(calibrated=True, n_parts=300,
+                         source_sd={"x_centre": 0.001}, **kw))  # fmt: skip
     half = 3.0 * math.sqrt(0.95 * 0.05 / 300)
     for kind, rate in cal.rates["linearised"].items():
         assert abs(rate - 0.95) <= half, (kind, cal.table())
