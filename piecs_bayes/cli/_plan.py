@@ -66,7 +66,7 @@ def cmd_plan(args, console) -> int:
     else:
         plan = plan_study(study, points=args.points, ratio=args.ratio, controller=args.controller)
     written = write_plan(plan, args.out, protect=[args.study])
-    ratio = plan.settings.get("ratio")
+    ratio = plan.settings.ratio
     console.say(
         f"{study.name}: {plan.n_points} points, predicted gauging time {plan.time_s:.0f} s "
         f"({plan.travel_mm:.0f} mm of travel)"

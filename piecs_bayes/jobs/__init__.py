@@ -65,9 +65,9 @@ from ._options import fit_options as fit_options
 from ._options import offset_settings as offset_settings
 from ._options import robust_scale as robust_scale
 from ._options import source_sds as source_sds
-from ._plan import PLAN_DEFAULTS as PLAN_DEFAULTS
 from ._plan import FeaturePlan as FeaturePlan
 from ._plan import PlannedPoint as PlannedPoint
+from ._plan import PlanSettings as PlanSettings
 from ._plan import ProbePlan as ProbePlan
 from ._plan import feature_fractions as feature_fractions
 from ._plan import plan_more as plan_more

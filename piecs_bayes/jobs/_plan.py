@@ -18,7 +18,9 @@ The plan: docs/models/gauging.md, "The probe plan".
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, replace
+from numbers import Integral, Real
 
 import numpy as np
 
@@ -37,21 +39,110 @@ from ..uncertainty import (
 )
 from ._options import source_sds
 
-#: `[plan]` defaults (mm, mm/min)
-PLAN_DEFAULTS = {
-    "ratio": 4.0,
-    "clearance": 1.0,
-    "end_clearance": 0.2,
-    "overtravel": 0.5,
-    "spacing": 0.1,
-    "inside_share": 0.2,
-    "rapid_feed": 4000.0,
-    "controller": "linuxcnc",
-    "x_mode": "diameter",
-    "probe_file": "probe_points.txt",
-    "log_file": "probe_log.txt",
-    "program_number": 9001,
-}
+
+@dataclass(frozen=True)
+class PlanSettings:
+    """The settings of a probe plan: the study's `[plan]` table (docs/formats.md) with
+    one default each, the command line's choices and the program's stock (mm, mm/min).
+
+    - `ratio`: the tolerance-to-U ratio the least counts reach; `points`: instead, the
+      count for every feature (`None`: by the ratio).
+    - `clearance`: of the ball from the stock on every move; `end_clearance`: of the
+      contact from a feature's sharp ends; `overtravel`: of the probe target beyond
+      the nominal contact; `spacing`: least distance between points; `inside_share`:
+      the share of a feature's points spread inside its window.
+    - `rapid_feed`: of the moves between points, for the predicted time.
+    - `controller` (`"linuxcnc"`, `"fanuc"`), `x_mode` (`"diameter"`, `"radius"`),
+      `probe_on`, `probe_off` (G-code words, `None`: none), `probe_file`, `log_file`,
+      `program_number`: the gauging program.
+    - `stock`: the stock left for the finish cut (`[program] stock`; `None` until a
+      plan takes it from its study).
+
+    `as_dict()` is what `plan.json` writes as its `"settings"` (the optional ones only
+    when set); `from_mapping` reads that back, or a study's `[plan]` table.
+    """
+
+    ratio: float = 4.0
+    points: int | None = None
+    clearance: float = 1.0
+    end_clearance: float = 0.2
+    overtravel: float = 0.5
+    spacing: float = 0.1
+    inside_share: float = 0.2
+    rapid_feed: float = 4000.0
+    controller: str = "linuxcnc"
+    x_mode: str = "diameter"
+    probe_on: str | None = None
+    probe_off: str | None = None
+    probe_file: str = "probe_points.txt"
+    log_file: str = "probe_log.txt"
+    program_number: int = 9001
+    stock: float | None = None
+
+    def __post_init__(self):
+        for name, ok, expected in (
+            ("ratio", lambda v: v > 0.0, "a number > 0"),
+            ("clearance", lambda v: v > 0.0, "a length > 0"),
+            ("end_clearance", lambda v: v >= 0.0, "a length >= 0"),
+            ("overtravel", lambda v: v > 0.0, "a length > 0"),
+            ("spacing", lambda v: v > 0.0, "a length > 0"),
+            ("inside_share", lambda v: 0.0 <= v <= 0.5, "a number in [0, 0.5]"),
+            ("rapid_feed", lambda v: v > 0.0, "a feed > 0"),
+            ("stock", lambda v: v >= 0.0, "a length >= 0"),
+        ):
+            v = getattr(self, name)
+            if v is None and name == "stock":
+                continue
+            if isinstance(v, bool) or not isinstance(v, Real) or not math.isfinite(v) or not ok(v):
+                _refuse(name, expected, v)
+            object.__setattr__(self, name, float(v))  # as the study file's numbers are
+        for name, lo, hi in (("points", 1, None), ("program_number", 1, 9999)):
+            v = getattr(self, name)
+            if v is None and name == "points":
+                continue
+            if isinstance(v, bool) or not isinstance(v, Integral) or v < lo or (hi and v > hi):
+                _refuse(name, f"an integer >= {lo}" + (f" and <= {hi}" if hi else ""), v)
+        for name, allowed in (("controller", ("linuxcnc", "fanuc")),
+                              ("x_mode", ("diameter", "radius"))):  # fmt: skip
+            if getattr(self, name) not in allowed:
+                _refuse(name, " or ".join(map(repr, allowed)), getattr(self, name))
+        for name in ("probe_on", "probe_off", "probe_file", "log_file"):
+            v = getattr(self, name)
+            if not (isinstance(v, str) and v) and not (v is None and name.startswith("probe_o")):
+                _refuse(name, "a text", v)
+
+    def as_dict(self) -> dict:
+        """The settings by name, as `plan.json` writes them: `points`, `probe_on`,
+        `probe_off` and `stock` only when set."""
+        return {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if not (f.name in _UNSET_LEFT_OUT and getattr(self, f.name) is None)
+        }
+
+    @classmethod
+    def from_mapping(cls, settings: Mapping) -> PlanSettings:
+        """The settings of a mapping by name: a study's `[plan]` table, or the
+        `"settings"` of a `plan.json` (in millimetres). A name that is not a setting is
+        refused, naming it."""
+        names = {f.name for f in fields(cls)}
+        for key in settings:
+            if key not in names:
+                raise InputError(
+                    f"unknown plan setting {key!r}; expected one of {', '.join(sorted(names))}",
+                    value=key,
+                )
+        return cls(**dict(settings))
+
+
+#: the settings `as_dict` leaves out while they are `None`
+_UNSET_LEFT_OUT = ("points", "probe_on", "probe_off", "stock")
+
+
+def _refuse(name: str, expected: str, value) -> None:
+    raise InputError(f"plan setting {name!r}: expected {expected}, got {value!r}", value=value)
+
+
 _MAX_POINTS = 60
 #: mm: a move that keeps the clearance to this much is safe (the polylines of arcs lie
 #: up to CHORD_ERROR_MM inside them)
@@ -99,7 +190,7 @@ class ProbePlan:
     features: tuple[FeaturePlan, ...]
     home: tuple[float, float]
     path: tuple[tuple[str, tuple[float, float]], ...]
-    settings: dict
+    settings: PlanSettings
     dof: float
     time_s: float
     travel_mm: float
@@ -112,16 +203,22 @@ class ProbePlan:
         return next(f for f in self.features if f.feature == fid)
 
 
-def _settings(study, points, ratio, controller) -> dict:
-    s = {**PLAN_DEFAULTS, **dict(study.plan)}
+def _settings(study, points, ratio, controller) -> PlanSettings:
+    """The plan's settings: the study's `[plan]` table, the stock of its program and the
+    choices of the call (a `ratio` without `points` plans by the ratio)."""
+    chosen: dict = {"stock": study.program_settings.stock}
     if points is not None:
-        s["points"] = int(points)
+        chosen["points"] = int(points)
     if ratio is not None:
-        s["ratio"] = float(ratio)
-        s.pop("points", None) if points is None else None
+        chosen["ratio"] = float(ratio)
+        if points is None:
+            chosen["points"] = None
     if controller is not None:
-        s["controller"] = controller
-    s["stock"] = study.program_settings.stock
+        chosen["controller"] = controller
+    try:
+        s = replace(PlanSettings.from_mapping(study.plan), **chosen)
+    except InputError as exc:
+        raise InputError(exc.reason, file=str(study.path), value=exc.value) from None
     for key, why in (("tool", "the gauging program selects the probe by it"),
                      ("feed", "a calibration holds only at the feed it was made at")):  # fmt: skip
         if getattr(study.probe, key) is None:
@@ -129,12 +226,12 @@ def _settings(study, points, ratio, controller) -> dict:
                 f"probe.{key}: missing; a probe plan needs it ({why})", file=str(study.path)
             )
     max_corr = study.compensation.max_correction
-    if s["overtravel"] <= max_corr:
+    if s.overtravel <= max_corr:
         raise InputError(
-            f"plan.overtravel {s['overtravel']:g} mm is not beyond [compensation] "
+            f"plan.overtravel {s.overtravel:g} mm is not beyond [compensation] "
             f"max_correction {max_corr:g} mm: a part off by that much would not be touched",
             file=str(study.path),
-            value=s["overtravel"],
+            value=s.overtravel,
         )
     return s
 
@@ -166,8 +263,8 @@ def _windows(study, s):
     prof, r = study.profile, study.probe.ball_radius
     out = {}
     for i, f in enumerate(prof.features):
-        w = probe_window(prof, i, r, s["end_clearance"], s["stock"] + s["clearance"])
-        if w is not None and (w[1] - w[0]) * f.length < s["spacing"]:
+        w = probe_window(prof, i, r, s.end_clearance, s.stock + s.clearance)
+        if w is not None and (w[1] - w[0]) * f.length < s.spacing:
             w = None  # a point, or less than the spacing: no room for distinct points
         if w is None:
             raise InputError(
@@ -199,7 +296,7 @@ def _feature_designs(study, s, windows, counts):
         designs = {}
         for f in study.profile.features:
             designs[f.id] = points_for_ratio(
-                f, windows[f.id], ds, s["ratio"], n_min=least[f.id], n_max=_MAX_POINTS,
+                f, windows[f.id], ds, s.ratio, n_min=least[f.id], n_max=_MAX_POINTS,
                 fixed=fixed.get(f.id, ()),
             )  # fmt: skip
         counts = {fid: len(d[0]) for fid, d in designs.items()}
@@ -221,10 +318,8 @@ def _feature_designs(study, s, windows, counts):
     return plans, ds.dof
 
 
-def _with(ds: DesignSettings, s: dict) -> DesignSettings:
-    from dataclasses import replace
-
-    return replace(ds, inside_share=s["inside_share"], spacing=s["spacing"])
+def _with(ds: DesignSettings, s: PlanSettings) -> DesignSettings:
+    return replace(ds, inside_share=s.inside_share, spacing=s.spacing)
 
 
 def plan_study(study, *, points=None, ratio=None, controller=None, counts=None):
@@ -241,8 +336,8 @@ def plan_study(study, *, points=None, ratio=None, controller=None, counts=None):
     """
     s = _settings(study, points, ratio, controller)
     windows = _windows(study, s)
-    if counts is None and "points" in s:
-        counts = {f.id: int(s["points"]) for f in study.profile.features}
+    if counts is None and s.points is not None:
+        counts = {f.id: int(s.points) for f in study.profile.features}
     if counts is not None:  # at least the fit's least points per feature
         counts = {f.id: max(int(counts.get(f.id, 0)), _min_points(study, f))
                   for f in study.profile.features}  # fmt: skip
@@ -328,7 +423,7 @@ def _extra_plans(study, s, windows, extra):
 
 def _points(study, s, plans):
     r = study.probe.ball_radius
-    out_dist = s["stock"] + s["clearance"]
+    out_dist = s.stock + s.clearance
     raw = []
     for f, ts, inside, _ in plans:
         if len(ts) == 0:
@@ -337,7 +432,7 @@ def _points(study, s, plans):
         n = np.asarray(f.outward_normal(q), dtype=float)
         c = q + r * n
         start = c + out_dist * n
-        target = c - s["overtravel"] * n
+        target = c - s.overtravel * n
         for k in range(len(ts)):
             raw.append((
                 f.id, float(ts[k]), _pt(q[k]), _pt(c[k]), _pt(-n[k]), _pt(start[k]),
@@ -356,7 +451,7 @@ def _check_probe_moves(study, s, raw) -> None:
     move meeting no other feature before its own."""
     r = study.probe.ball_radius
     polys = {f.id: feature_polyline(f) for f in study.profile.features}
-    need = r + s["stock"] + s["clearance"]
+    need = r + s.stock + s.clearance
     for fid, t, _q, c, _a, start, _tg, _i in raw:
         for gid, poly in polys.items():
             d = float(point_distance(np.asarray([start]), poly)[0])
@@ -364,7 +459,7 @@ def _check_probe_moves(study, s, raw) -> None:
                 raise InputError(
                     f"feature {fid!r} at t={t:.3f}: the probe's stand-off is {d - r:.3f} mm "
                     f"from feature {gid!r}, less than stock + clearance "
-                    f"({s['stock'] + s['clearance']:g} mm): the ball cannot approach along "
+                    f"({s.stock + s.clearance:g} mm): the ball cannot approach along "
                     "the normal there (an undercut or a narrow groove)",
                     file=str(study.path),
                     feature=fid,

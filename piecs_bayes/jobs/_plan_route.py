@@ -30,7 +30,7 @@ def is_internal(profile) -> bool:
 def retract_x(study, s) -> float:
     """The retract line's X (radius, mm): clear of the stock by the clearance."""
     poly = _profile_polyline(study.profile)
-    grow = s["stock"] + study.probe.ball_radius + s["clearance"]
+    grow = s.stock + study.probe.ball_radius + s.clearance
     if is_internal(study.profile):
         x = float(poly[:, 0].min()) - grow
         if x < 0.0:
@@ -94,7 +94,7 @@ def order_and_route(study, s, raw):
     `(feature, t, contact, centre, approach, start, target, inside)`."""
     poly = _profile_polyline(study.profile)
     r = study.probe.ball_radius
-    need = r + s["stock"] + s["clearance"]
+    need = r + s.stock + s.clearance
     x_ret = retract_x(study, s)
     z_front = float(poly[:, 1].max()) + need
     home = (x_ret, z_front)
@@ -148,6 +148,6 @@ def order_and_route(study, s, raw):
     travel += _length(nodes[order[-1]], back)
     rapid = travel + probe_len  # the retracts after each touch are rapid too
     feed = study.probe.feed
-    time_s = 60.0 * (rapid / s["rapid_feed"] + probe_len / feed)
+    time_s = 60.0 * (rapid / s.rapid_feed + probe_len / feed)
     ordered = [raw[k - 1] for k in order[1:]]
     return home, ordered, tuple(path), float(travel + 2 * probe_len), float(time_s)

@@ -38,7 +38,7 @@ def _fine_program(plan, **kw) -> str:
     """The plan's program with 10 decimals (the shipped one has 4)."""
     s, st = plan.settings, plan.study
     args = dict(
-        controller=s["controller"], units=st.units, x_mode=s["x_mode"], tool=st.probe.tool,
+        controller=s.controller, units=st.units, x_mode=s.x_mode, tool=st.probe.tool,
         feed_mm_min=st.probe.feed, header=["test"], decimals=10,
     )  # fmt: skip
     args.update(kw)

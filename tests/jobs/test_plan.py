@@ -4,7 +4,9 @@ direct computation, the safe moves, and a "measure more" plan that decides."""
 
 from __future__ import annotations
 
+import json
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -12,10 +14,12 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import AnalysisError, InputError
+from piecs_bayes.export import plan_json, plan_program
 from piecs_bayes.fit import fit_profiles, normal_variance_factor, to_part_frame
 from piecs_bayes.geometry import Line, feature_polyline, path_distance, probe_window
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import (
+    PlanSettings,
     decide_study,
     feature_fractions,
     fit_options,
@@ -134,7 +138,7 @@ def test_the_least_counts_for_a_ratio_of_4(study):
 def test_every_move_keeps_the_ball_clear_of_the_stock(study):
     plan = plan_study(study, points=5)
     poly = np.vstack([feature_polyline(f) for f in study.profile.features])
-    need = study.probe.ball_radius + plan.settings["stock"] + plan.settings["clearance"]
+    need = study.probe.ball_radius + plan.settings.stock + plan.settings.clearance
     prev, prev_kind = plan.home, "rapid"
     for kind, p in plan.path:
         if kind == "rapid" and prev_kind == "rapid" and prev != p:  # not the way back
@@ -143,7 +147,7 @@ def test_every_move_keeps_the_ball_clear_of_the_stock(study):
     # each probe move targets the nominal ball centre plus the overtravel, along the normal
     for pt in plan.points:
         c, a = np.array(pt.centre), np.array(pt.approach)
-        np.testing.assert_allclose(pt.target, c + plan.settings["overtravel"] * a, atol=1e-12)
+        np.testing.assert_allclose(pt.target, c + plan.settings.overtravel * a, atol=1e-12)
         np.testing.assert_allclose(np.linalg.norm(a), 1.0, atol=1e-12)
 
 
@@ -154,7 +158,7 @@ def test_a_straight_move_that_would_hit_the_part_goes_around(tmp_path):
     study = _groove_study(tmp_path, width=8.0)
     plan = plan_study(study, points=3)
     poly = np.vstack([feature_polyline(f) for f in study.profile.features])
-    need = study.probe.ball_radius + plan.settings["stock"] + plan.settings["clearance"]
+    need = study.probe.ball_radius + plan.settings.stock + plan.settings.clearance
     prev, prev_kind, retracts = plan.home, "rapid", 0
     for kind, p in plan.path:
         if kind == "rapid" and prev_kind == "rapid" and prev != p:
@@ -366,3 +370,57 @@ def test_a_lines_design_reaches_the_g_optimum_and_its_gain_over_uniform_is_bound
     assert u.u_fit == pytest.approx(uniform, rel=1e-9)
     bound = 1.0 - math.sqrt(2 * (n + 1) / (4 * n - 2))
     assert bound - 0.01 <= 1.0 - d.u_fit / u.u_fit <= bound < 0.25
+
+
+def test_plan_settings_keep_the_defaults_of_the_plan_table():
+    s = PlanSettings()
+    assert s.as_dict() == {
+        "ratio": 4.0, "clearance": 1.0, "end_clearance": 0.2, "overtravel": 0.5,
+        "spacing": 0.1, "inside_share": 0.2, "rapid_feed": 4000.0, "controller": "linuxcnc",
+        "x_mode": "diameter", "probe_file": "probe_points.txt", "log_file": "probe_log.txt",
+        "program_number": 9001,
+    }  # fmt: skip
+    assert (s.points, s.probe_on, s.probe_off, s.stock) == (None, None, None, None)
+    # the study file's numbers are floats: so are the settings made with integers
+    assert PlanSettings(ratio=4, clearance=2).as_dict()["clearance"] == 2.0
+    assert isinstance(PlanSettings(ratio=4).ratio, float)
+
+
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"ratio": 0.0}, "plan setting 'ratio': expected a number > 0, got 0.0"),
+        ({"points": 0}, "plan setting 'points': expected an integer >= 1, got 0"),
+        (
+            {"inside_share": 0.6},
+            "plan setting 'inside_share': expected a number in [0, 0.5], got 0.6",
+        ),
+        ({"rapid_feed": math.inf}, "plan setting 'rapid_feed': expected a feed > 0, got inf"),
+        (
+            {"controller": "heidenhain"},
+            "plan setting 'controller': expected 'linuxcnc' or 'fanuc', got 'heidenhain'",
+        ),
+        (
+            {"program_number": 10000},
+            "plan setting 'program_number': expected an integer >= 1 and <= 9999, got 10000",
+        ),
+        ({"probe_file": ""}, "plan setting 'probe_file': expected a text, got ''"),
+    ],
+)
+def test_plan_settings_refuse_a_bad_value_by_name(kw, message):
+    with pytest.raises(InputError, match=re.escape(message)):
+        PlanSettings(**kw)
+    with pytest.raises(InputError, match="unknown plan setting 'feed'"):
+        PlanSettings.from_mapping({"feed": 100.0})
+
+
+def test_the_shipped_plan_is_written_again_byte_for_byte():
+    """data/demo/gauge: plan.json and the gauging program as written before the settings
+    became an object; the plan's settings read back from its plan.json."""
+    gauge = DEMO.parent / "gauge"
+    plan = plan_study(load_study(gauge / "study.toml"))
+    text = (gauge / "plan.json").read_text()
+    assert plan_json(plan) == text
+    assert plan_program(plan) == (gauge / "gauging.ngc").read_text()
+    assert PlanSettings.from_mapping(json.loads(text)["settings"]) == plan.settings
+    assert plan.settings.points is None and plan.settings.stock == 0.5

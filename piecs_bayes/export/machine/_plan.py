@@ -38,7 +38,7 @@ def _header(plan) -> list[str]:
         f"piecs_bayes {__version__} gauging program",
         f"study {study.path.name} sha256 {sha}",
         f"plan: {plan.n_points} points on {len(plan.features)} features, "
-        f"controller {plan.settings['controller']}",
+        f"controller {plan.settings.controller}",
     ]
 
 
@@ -46,11 +46,11 @@ def plan_program(plan) -> str:
     """The gauging program text of the plan, for its controller."""
     study, s = plan.study, plan.settings
     return gauging_program(
-        plan.home, plan.path, plan.points, controller=s["controller"], units=study.units,
-        x_mode=s["x_mode"], tool=study.probe.tool, feed_mm_min=study.probe.feed,
-        header=_header(plan), probe_file=s["probe_file"], log_file=s["log_file"],
-        probe_on=s.get("probe_on"),
-        probe_off=s.get("probe_off"), program_number=s["program_number"],
+        plan.home, plan.path, plan.points, controller=s.controller, units=study.units,
+        x_mode=s.x_mode, tool=study.probe.tool, feed_mm_min=study.probe.feed,
+        header=_header(plan), probe_file=s.probe_file, log_file=s.log_file,
+        probe_on=s.probe_on,
+        probe_off=s.probe_off, program_number=s.program_number,
     )  # fmt: skip
 
 
@@ -74,8 +74,8 @@ def plan_json(plan) -> str:
         "study_sha256": _sha256(study.path),
         "units": study.units,
         "x": "radius",
-        "program_x_mode": plan.settings["x_mode"],
-        "controller": plan.settings["controller"],
+        "program_x_mode": plan.settings.x_mode,
+        "controller": plan.settings.controller,
         "frame": "part (the finish program's work coordinates)",
         "probe": {
             "tool": study.probe.tool,
@@ -90,7 +90,7 @@ def plan_json(plan) -> str:
                 in ("clearance", "end_clearance", "overtravel", "spacing", "stock", "rapid_feed")
                 else v
             )
-            for key, v in sorted(plan.settings.items())
+            for key, v in sorted(plan.settings.as_dict().items())
         },  # fmt: skip
         "sigma_dof": _num(plan.dof),
         "predicted_time_s": _num(plan.time_s),
@@ -163,7 +163,7 @@ def write_plan(plan, out, *, protect=(), figure: bool = True) -> list[Path]:
     written = [
         write_text_atomic(out / "plan.json", plan_json(plan), protect=protect),
         write_text_atomic(
-            out / GAUGING_NAMES[plan.settings["controller"]], plan_program(plan), protect=protect
+            out / GAUGING_NAMES[plan.settings.controller], plan_program(plan), protect=protect
         ),
     ]
     if figure:
