@@ -17,6 +17,12 @@ from ._contour import ContourSegment as ContourSegment
 from ._contour import FinishContour as FinishContour
 from ._contour import compensation_runs as compensation_runs
 from ._contour import finish_contour as finish_contour
+from ._cycles import ContourMove as ContourMove
+from ._cycles import CycleMove as CycleMove
+from ._cycles import FinishCycle as FinishCycle
+from ._cycles import RoughCycle as RoughCycle
+from ._cycles import cycle_start as cycle_start
+from ._cycles import expand_cycle as expand_cycle
 from ._dprnt import DprntFormat as DprntFormat
 from ._dprnt import dprnt_value as dprnt_value
 from ._gauge_moves import GaugeMove as GaugeMove
