@@ -17,6 +17,9 @@ from ._contour import ContourSegment as ContourSegment
 from ._contour import FinishContour as FinishContour
 from ._contour import compensation_runs as compensation_runs
 from ._contour import finish_contour as finish_contour
+from ._cycle_words import fanuc_cycle as fanuc_cycle
+from ._cycle_words import linuxcnc_cycle as linuxcnc_cycle
+from ._cycle_words import non_contour_cycle as non_contour_cycle
 from ._cycles import ContourMove as ContourMove
 from ._cycles import CycleMove as CycleMove
 from ._cycles import FinishCycle as FinishCycle
@@ -56,6 +59,8 @@ from ._nosecomp import compensated_path as compensated_path
 from ._nosecomp import correct_radius_error as correct_radius_error
 from ._nosecomp import nose_compensate as nose_compensate
 from ._nosecomp import tip_offset as tip_offset
+from ._pattern_repeat import PatternRepeat as PatternRepeat
+from ._pattern_repeat import expand_pattern_repeat as expand_pattern_repeat
 from ._rs274 import CanonMove as CanonMove
 from ._rs274 import Rs274Result as Rs274Result
 from ._rs274 import rs274_path as rs274_path

@@ -1,19 +1,18 @@
 """Lathe canned cycles G70/G71/G72 expanded into the moves the control makes.
 
-[`expand_cycle`][] takes a contour (the blocks of a LinuxCNC O-sub or of Fanuc's
-``P``..``Q`` blocks, as [`ContourMove`][]s or [`Motion`][]s read from the cycle's start
-point), the tool position before the cycle block and a [`FinishCycle`][] (G70) or
-[`RoughCycle`][] (G71/G72 and their ``.1``/``.2`` forms), and returns the
-[`CycleMove`][]s LinuxCNC 2.9's interpreter makes: rapids, feeds and arcs in mm,
-radius X, each with the cycle block's line and, where it follows the contour, the
-contour block it comes from. It follows LinuxCNC's rules (``rs274``) to its
-tolerances, quirks included; a contour the control refuses is an
-:class:`~piecs_bayes.errors.InputError` naming the cycle's line. Nose compensation is
-the caller's: a G70 pass is the contour itself and composes with G41/G42 as the
-program's own blocks would.
+[`expand_cycle`][] takes a contour (a LinuxCNC O-sub's blocks or Fanuc's ``P``..``Q``
+blocks, as [`ContourMove`][]s or [`Motion`][]s read from the cycle's start point), the
+tool position before the cycle block and a [`FinishCycle`][] (G70) or [`RoughCycle`][]
+(G71/G72 and their ``.1``/``.2`` forms), and returns the [`CycleMove`][]s LinuxCNC
+2.9's interpreter makes: rapids, feeds and arcs in mm, radius X, each with the cycle
+block's line and, where it follows the contour, the contour block it comes from. It
+follows LinuxCNC's rules (``rs274``) to its tolerances, quirks included; a contour the
+control refuses is an :class:`~piecs_bayes.errors.InputError` naming the cycle's line.
+Nose compensation is the caller's: a G70 pass is the contour itself and composes with
+G41/G42 as the program's own blocks would.
 
-The rules, the words of each dialect and where rs274 departs from LinuxCNC's
-documentation: docs/models/part_programs.md, "Canned cycles".
+The rules, each dialect's words, where rs274 departs from LinuxCNC's documentation:
+docs/models/part_programs.md, "Canned cycles".
 """
 
 from __future__ import annotations

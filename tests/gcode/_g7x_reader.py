@@ -11,13 +11,11 @@ Compensation, tools, feeds and M codes are skipped.
 from __future__ import annotations
 
 import cmath
-import math
 import re
 from dataclasses import dataclass, field
 
 from piecs_bayes.gcode import ContourMove, FinishCycle, RoughCycle, expand_cycle
 
-_WORD = re.compile(r"([a-z])\s*(\[[^\]]*(?:\][^a-z\[]*\[?[^\]]*)*\]|[-+]?\s*[0-9.]+)")
 _PARAM = re.compile(r"#<([_a-z0-9]+)>")
 
 
@@ -250,5 +248,4 @@ def _contour(body, start: complex, st: _State) -> list[ContourMove]:
         )
         pos = end
     st.pos = saved
-    _ = math
     return moves
