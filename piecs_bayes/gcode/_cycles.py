@@ -183,9 +183,10 @@ def expand_cycle(
 
     **Returns:** the moves, starting with the rapid to the start point (of zero length
     when the block has no X/Z, as rs274 makes it). A G70 pass is the contour offset by
-    its distance (none on the last pass): nose compensation programmed before G70
-    (G41/G42, the tool in the P block on Fanuc) applies to these moves as it would to
-    the same blocks written out, so compensate the result, not the contour.
+    its distance (none on the last pass). Nose compensation in force at G70 (LinuxCNC's
+    G41/G42 before it, Fanuc's in the P block) is not applied here: compensate the
+    moves after the first as the same blocks written out would be (the rapid to X/Z is
+    made uncompensated, as LinuxCNC does since July 2024), not the contour.
 
     Raises :class:`~piecs_bayes.errors.InputError` (with the cycle's line) where the
     control refuses the contour: not monotonic, a corner that does not fit, a roughing
