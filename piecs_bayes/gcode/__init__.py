@@ -1,7 +1,8 @@
 """Part programs (G-code, lathe dialect): lossless lexing, modal state, tool tables,
 tool-nose compensation (G41/G42), the adjusted finish-cut program (with its traceability
 comment block), the finish contour (a study's profile from the program), the tool that
-cuts the finish pass, and the rs274 bridge.
+cuts the finish pass, canned cycles (G70/G71/G72/G73 expanded into the control's
+moves), and the rs274 bridge.
 
 Builds on `piecs_bayes.geometry` (features of the profile) and `piecs_bayes.errors`;
 neither `geometry` nor `io` imports this package.
