@@ -1,7 +1,8 @@
 """Part programs (G-code, lathe dialect): lossless lexing, modal state, tool tables,
 tool-nose compensation (G41/G42), the adjusted finish-cut program (with its traceability
 comment block), the finish contour (a study's profile from the program), the tool that
-cuts the finish pass, and the rs274 bridge.
+cuts the finish pass, canned cycles (G70/G71/G72/G73 expanded into the control's
+moves), and the rs274 bridge.
 
 Builds on `piecs_bayes.geometry` (features of the profile) and `piecs_bayes.errors`;
 neither `geometry` nor `io` imports this package.
@@ -17,6 +18,15 @@ from ._contour import ContourSegment as ContourSegment
 from ._contour import FinishContour as FinishContour
 from ._contour import compensation_runs as compensation_runs
 from ._contour import finish_contour as finish_contour
+from ._cycle_words import fanuc_cycle as fanuc_cycle
+from ._cycle_words import linuxcnc_cycle as linuxcnc_cycle
+from ._cycle_words import non_contour_cycle as non_contour_cycle
+from ._cycles import ContourMove as ContourMove
+from ._cycles import CycleMove as CycleMove
+from ._cycles import FinishCycle as FinishCycle
+from ._cycles import RoughCycle as RoughCycle
+from ._cycles import cycle_start as cycle_start
+from ._cycles import expand_cycle as expand_cycle
 from ._dprnt import DprntFormat as DprntFormat
 from ._dprnt import dprnt_value as dprnt_value
 from ._gauge_moves import GaugeMove as GaugeMove
@@ -50,6 +60,8 @@ from ._nosecomp import compensated_path as compensated_path
 from ._nosecomp import correct_radius_error as correct_radius_error
 from ._nosecomp import nose_compensate as nose_compensate
 from ._nosecomp import tip_offset as tip_offset
+from ._pattern_repeat import PatternRepeat as PatternRepeat
+from ._pattern_repeat import expand_pattern_repeat as expand_pattern_repeat
 from ._rs274 import CanonMove as CanonMove
 from ._rs274 import Rs274Result as Rs274Result
 from ._rs274 import rs274_path as rs274_path
