@@ -219,6 +219,12 @@ def test_every_program_has_its_case_and_its_readme_line():
     assert len(files) >= 30
 
 
+def test_demo_contour_is_finish_ngcs():
+    """DEMO, the contour most programs here carry, is data/demo/finish.ngc's as read today."""
+    demo = Path(__file__).resolve().parents[2] / "data" / "demo" / "finish.ngc"
+    _assert_features(finish_contour(read_gcode(demo)), DEMO)
+
+
 def test_crlf_program_is_crlf_throughout():
     data = (DIALECTS / "fanuc_crlf.nc").read_bytes()
     assert data.count(b"\r\n") == data.count(b"\n") == 19 and b"\r\r" not in data
