@@ -18,6 +18,11 @@ it once so that it is in the page cache, then times, side by side in this one ru
 
 Prints rows per second of each (wall clock, and CPU time of this process, which a
 busy machine disturbs less) and checks that both readers give identical arrays.
+
+And part programs (issue 38): a LinuxCNC lathe program of `--blocks` blocks (100,000) with
+subroutine calls and parameters, read by `piecs_bayes.gcode.read_gcode` (target: under 2 s;
+skipped with a note while the reader refuses the file) beside LinuxCNC's `rs274 -g` on the
+same file (skipped with a note when it is not installed). `--gcode-only` runs just that.
 """
 
 from __future__ import annotations
@@ -92,12 +97,124 @@ def probeopen_times(tmp: Path, rows: int, repeat: int, pd):
     return t, t_pd
 
 
+def write_gcode_program(path: Path, blocks: int) -> None:
+    """A LinuxCNC lathe program of `blocks` lines (mm, diameter X): a named global and a
+    named local parameter, a subroutine of two moves taking two arguments, then blocks that
+    set a parameter, call the subroutine with it, move with an expression, and rapid back,
+    in turn (every second block moves the tool; each call makes two moves more)."""
+    head = [
+        f"(benchmarks/bench_io.py: {blocks} blocks, subroutine calls and parameters)",
+        "G18 G21 G7 G90 G95",
+        "#<_step> = 0.05",
+        "#<depth> = 0.5",
+        "o100 sub",
+        "  G1 X[#1] Z[#2]",
+        "  G1 Z[#2 - 0.5]",
+        "o100 endsub",
+        "T1 M6",
+        "S800 M3",
+        "F0.1",
+        "G0 X60 Z2",
+    ]
+    body = []
+    for k in range(blocks - len(head) - 1):
+        kind = k % 4
+        if kind == 0:
+            body.append(f"#<x> = [40 + {k % 50} * #<_step>]")
+        elif kind == 1:
+            body.append(f"o100 call [#<x>] [{-(k % 200) * 0.1:.1f}]")
+        elif kind == 2:
+            body.append(f"G1 X[#<x> + #<depth>] Z{-(k % 200) * 0.1 - 1:.1f}")
+        else:
+            body.append("G0 X60 Z2")
+    path.write_text("\n".join([*head, *body, "M2"]) + "\n")
+
+
+def gcode_times(tmp: Path, blocks: int, repeat: int) -> dict:
+    """`read_gcode` and `rs274 -g` on a `blocks`-block program: {name: (wall, cpu) or a note}.
+    rs274 runs with a HOME of its own (it keeps its tool table in $HOME/.tool.mmap, which
+    two runs at once would share)."""
+    import shutil
+    import subprocess
+
+    from piecs_bayes.gcode import read_gcode
+
+    path = tmp / "big.ngc"
+    write_gcode_program(path, blocks)
+    path.read_bytes()  # page cache
+    out: dict = {"size": path.stat().st_size}
+    try:
+        program = read_gcode(path)
+    except InputError as exc:
+        out["read_gcode"] = f"skipped: read_gcode refuses the file today ({exc})"
+    else:
+        out["read_gcode"] = best(lambda: read_gcode(path), repeat)
+        out["moves"] = len(program.moves)
+    exe = shutil.which("rs274")
+    if exe is None:
+        out["rs274"] = "skipped: rs274 is not installed (Debian package linuxcnc-uspace)"
+        return out
+    home = tmp / "home"
+    home.mkdir(exist_ok=True)
+    env = {**os.environ, "HOME": str(home)}
+
+    def rs274():
+        return subprocess.run(
+            [exe, "-g", str(path), str(tmp / "canon.txt")],
+            cwd=tmp, env=env, capture_output=True, text=True, stdin=subprocess.DEVNULL,
+        )  # fmt: skip
+
+    proc = rs274()
+    messages = [ln for ln in (proc.stdout + proc.stderr).splitlines() if ln.strip() != "executing"]
+    if proc.returncode != 0 or messages:
+        out["rs274"] = f"skipped: rs274 stops: {' / '.join(messages)[:200]}"
+        return out
+    canon = (tmp / "canon.txt").read_text()
+    out["rs274_moves"] = sum(canon.count(k) for k in ("STRAIGHT_FEED(", "STRAIGHT_TRAVERSE("))
+    wall, cpu = [], []
+    for _ in range(repeat):  # rs274's time is the child's: wall clock and its CPU time
+        t0, c0 = time.perf_counter(), os.times()
+        rs274()
+        c1 = os.times()
+        wall.append(time.perf_counter() - t0)
+        cpu.append(c1.children_user + c1.children_system - c0.children_user - c0.children_system)
+    out["rs274"] = (min(wall), min(cpu))
+    return out
+
+
+def print_gcode_times(t: dict, blocks: int) -> None:
+    print()
+    print(f"part program: {blocks:,} blocks ({t['size'] / 1e6:.1f} MB), subroutine calls and "
+          "parameters (LinuxCNC)")  # fmt: skip
+    print("| reader | wall s | blocks/s | CPU s |")
+    print("|---|---:|---:|---:|")
+    for name in ("read_gcode", "rs274"):
+        v = t[name]
+        label = "piecs_bayes.gcode.read_gcode" if name == "read_gcode" else "rs274 -g (LinuxCNC)"
+        if isinstance(v, str):
+            print(f"| {label} | - | - | - |")
+            print(f"  {label}: {v}")
+        else:
+            print(f"| {label} | {v[0]:.3f} | {blocks / v[0]:,.0f} | {v[1]:.3f} |")
+    if "rs274_moves" in t:
+        print(f"rs274: {t['rs274_moves']:,} straight moves in its canon")
+    if not isinstance(t["read_gcode"], str):
+        verdict = "met" if t["read_gcode"][0] < 2.0 else "MISSED"
+        print(f"read_gcode: {t['moves']:,} moves; target under 2 s: {verdict}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rows", type=int, default=1_000_000)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--no-rows-reader", action="store_true", help="skip the slow row reader")
+    ap.add_argument("--blocks", type=int, default=100_000, help="blocks of the part program")
+    ap.add_argument("--gcode-only", action="store_true", help="time only the part program")
     args = ap.parse_args()
+    if args.gcode_only:
+        with tempfile.TemporaryDirectory() as tmp:
+            print_gcode_times(gcode_times(Path(tmp), args.blocks, args.repeat), args.blocks)
+        return
     import pandas as pd
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -153,6 +270,7 @@ def main() -> None:
         assert f"probe_bad.csv:{line}," in msg, msg
 
         t_cnc, t_cnc_pd = probeopen_times(Path(tmp), args.rows, args.repeat, pd)
+        t_gcode = gcode_times(Path(tmp), args.blocks, args.repeat)
 
     n = args.rows
 
@@ -175,6 +293,7 @@ def main() -> None:
     if t_rows is not None:
         print(f"fast path / row reader: {t_rows[0] / t_fast[0]:.1f}x wall")
     print(f"fast path / pandas.read_csv: {t_pd[0] / t_fast[0]:.2f}x wall (>1: faster than pandas)")
+    print_gcode_times(t_gcode, args.blocks)
     print(f"load average {os.getloadavg()[0]:.2f} (1 min), {os.cpu_count()} CPUs")
 
 

@@ -14,12 +14,19 @@ Plus one case per class of the hardening issue (typos, implausible data,
 unsafe G-code, file-system faults, signals), one per refusal of `init` (a program
 whose contour cannot be a study; an existing study without --force), and a SIGTERM in the middle of a
 run that must leave no partial output.
+
+Issue 38's new constructs, broken (an unterminated sub, an unknown O label, a G71 whose Q
+block comes first, never comes or comes after M30, a division by zero, an endless loop, a NUL
+byte): `gcode check` and `init` exit 2 with one line, no traceback, within a minute, writing
+nothing; which line and why they name is xfail until the reader of issue 38 reads them. And
+10 MB of comments and a CRLF file are read.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -565,3 +572,144 @@ def test_each_control_probe_fault_gets_its_one_line_message(capsys, gauge_copy, 
     _check(rc, text, tmp, before, ["part.txt"], out)
     assert rc == 2 and expect in text, text
     assert len(text.strip().splitlines()) == 1, text
+
+
+# --------------------------------------------------------------------------- issue 38
+
+
+DIALECTS = GCODE / "dialects"
+
+
+def _haas_demo(edit) -> bytes:
+    """The demo shaft as a Haas G71/G70 program (tests/data/gcode/dialects), edited."""
+    lines = (DIALECTS / "haas_demo_shaft.nc").read_text().splitlines(keepends=True)
+    return "".join(edit(lines)).encode()
+
+
+def _move(lines, which, before):
+    """`lines` with the line starting with `which` moved before the one starting `before`."""
+    line = next(ln for ln in lines if ln.startswith(which))
+    rest = [ln for ln in lines if ln is not line]
+    k = next(i for i, ln in enumerate(rest) if ln.startswith(before))
+    return rest[:k] + [line] + rest[k:]
+
+
+def _to_end(lines, which):
+    """`lines` with the line starting with `which` moved after M30, before the closing %."""
+    line = next(ln for ln in lines if ln.startswith(which))
+    rest = [ln for ln in lines if ln is not line]
+    return rest[:-1] + [line, rest[-1]]
+
+
+_DEMO_BYTES = (DEMO / "finish.ngc").read_bytes()
+
+#: the new constructs of issue 38, broken: (name, program bytes, the lines (1-based) of which
+#: the reader of issue 38 must name one, the words its message must hold: for each group one
+#: of the words, in the message less the file, the line and the echoed program line)
+NEW_CONSTRUCTS = [
+    ("unterminated_sub", b"G18 G21 G7\no100 sub\nG1 X10 Z0\nG1 Z-10\nM2\n", (2,), [("o100",), ("endsub",)]),
+    ("unknown_o_label", b"G18 G21 G7 G95 S500 M3 F0.1\no<nowhere> call\nM2\n", (2,), [("o<nowhere>",), ("no sub", "not defined", "undefined", "unknown", "no such")]),
+    ("g71_q_block_first", _haas_demo(lambda ls: _move(ls, "N20 ", "N7 ")), (11,), [("N20",), ("before", "first", "precedes")]),
+    ("g71_q_block_never", _haas_demo(lambda ls: [ln.replace("N20 ", "N19 ") for ln in ls]), (10,), [("N20",)]),
+    ("p_block_without_end", _haas_demo(lambda ls: _to_end(ls, "N20 ")), (10,), [("M30",)]),
+    ("division_by_zero", b"G18 G21 G7\n#1=[10/0]\nG0 X#1 Z2\nM2\n", (2,), [("zero", "divi")]),
+    ("endless_loop", b"G18 G21 G7\n#1=0\no100 while [#1 LT 1]\nG0 X10 Z2\no100 endwhile\nM2\n", (3, 4, 5), [("limit",)]),
+    ("nul_byte", _DEMO_BYTES.replace(b"N60", b"N60\x00"), (8,), [("\\x00",)]),
+]  # fmt: skip
+
+
+def _one_line_refusal(capsys, folder: Path, name: str, data: bytes):
+    """`gcode check` and `init` on `data`: both exit 2 with one line naming the file, no
+    traceback, in under a minute, nothing written and the input unchanged. The messages."""
+    prog = folder / f"{name}.nc"
+    prog.write_bytes(data)
+    out = folder / "study.toml"
+    before = _digest(folder)
+    texts = []
+    for argv in (["gcode", "check", prog, "--nose-radius", "0.4"], ["init", prog, "--out", out]):
+        t0 = time.perf_counter()
+        rc, text = _run(capsys, argv)
+        assert time.perf_counter() - t0 < 60.0, argv  # no hang
+        _check(rc, text, folder, before, [prog.name], folder)
+        assert rc == 2 and len(text.strip().splitlines()) == 1, text
+        texts.append(text.strip())
+    assert not out.exists() and prog.read_bytes() == data
+    return texts
+
+
+@pytest.mark.parametrize("case", NEW_CONSTRUCTS, ids=[c[0] for c in NEW_CONSTRUCTS])
+def test_new_construct_broken_is_refused_in_one_line(capsys, tmp_path, case):
+    """Refused today (the reader does not read these constructs at all) and by the reader
+    of issue 38 (which must say what is broken: next test)."""
+    name, data, _, _ = case
+    _one_line_refusal(capsys, tmp_path, name, data)
+
+
+#: what each broken program breaks, for its xfail reason
+_CONSTRUCT = {
+    "unterminated_sub": "O-word subs (o100 sub without its endsub)",
+    "unknown_o_label": "O-word calls (a call of a sub the program does not have)",
+    "g71_q_block_first": "G71 P/Q blocks (the Q block before the P block)",
+    "g71_q_block_never": "G71 P/Q blocks (no Q block)",
+    "p_block_without_end": "G71 P/Q blocks (a contour that runs through M30)",
+    "division_by_zero": "parameter expressions (a division by zero)",
+    "endless_loop": "O-word loops (one that never ends)",
+}
+
+
+def _named_lines(case):
+    name, data, lines, words = case
+    mark = pytest.mark.xfail(
+        strict=True, reason=f"issue 38: the reader does not read {_CONSTRUCT.get(name)} yet"
+    )
+    return pytest.param(case, id=name, marks=[] if name == "nul_byte" else [mark])
+
+
+@pytest.mark.parametrize("case", [_named_lines(c) for c in NEW_CONSTRUCTS])
+def test_new_construct_broken_names_its_line_and_why(capsys, tmp_path, case):
+    name, data, lines, words = case
+    for text in _one_line_refusal(capsys, tmp_path, name, data):
+        where = [f"{name}.nc:{k}: " for k in lines if f"{name}.nc:{k}: " in text]
+        assert where, text
+        why = re.sub(r": '.*'$", "", text.split(where[0], 1)[1])  # the echoed line goes
+        assert all(any(w in why for w in group) for group in words), text
+
+
+def test_ten_megabytes_of_comments_read_in_time(capsys, tmp_path):
+    """The demo program with 10 MB of comments (10,000 lines of 1,000 bytes; one line of
+    10 MB in parentheses; one after a semicolon): read and made a study of, in time."""
+    filler = {
+        "lines": b"(" + b"x" * 998 + b")\n",
+        "one_line": b"(" + b"x" * 10_000_000 + b")\n",
+        "semicolon": b"; " + b"y" * 10_000_000 + b"\n",
+    }
+    for name, block in filler.items():
+        data = _DEMO_BYTES.replace(b"N10", block * (10_000 if name == "lines" else 1) + b"N10")
+        assert len(data) > 10_000_000
+        prog = tmp_path / f"{name}.ngc"
+        prog.write_bytes(data)
+        out = tmp_path / f"{name}.toml"
+        t0 = time.perf_counter()
+        rc, text = _run(capsys, ["init", prog, "--out", out])
+        assert time.perf_counter() - t0 < 60.0 and rc == 0 and "Traceback" not in text, text
+        assert out.read_text().count("[[profile.feature]]") == 7
+        assert prog.read_bytes() == data
+
+
+def test_crlf_program_reads_and_keeps_its_bytes(capsys, tmp_path):
+    data = _DEMO_BYTES.replace(b"\n", b"\r\n")
+    prog = tmp_path / "crlf.ngc"
+    prog.write_bytes(data)
+    rc, text = _run(capsys, ["init", prog, "--out", tmp_path / "s.toml"])
+    assert rc == 0 and (tmp_path / "s.toml").read_text().count("[[profile.feature]]") == 7, text
+    assert prog.read_bytes() == data
+
+
+@pytest.mark.xfail(strict=True, reason="issue 38: the reader does not read Haas G71/G70 yet")
+def test_crlf_haas_program_makes_the_demo_study(capsys, tmp_path):
+    data = (DIALECTS / "haas_demo_shaft.nc").read_bytes().replace(b"\n", b"\r\n")
+    prog = tmp_path / "haas_crlf.nc"
+    prog.write_bytes(data)
+    rc, text = _run(capsys, ["init", prog, "--out", tmp_path / "s.toml"])
+    assert rc == 0 and (tmp_path / "s.toml").read_text().count("[[profile.feature]]") == 7, text
+    assert prog.read_bytes() == data
