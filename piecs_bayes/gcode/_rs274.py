@@ -14,6 +14,7 @@ How to run it and read its canon: docs/models/nose_compensation.md, "The referen
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -101,8 +102,18 @@ def run_rs274(program, *, tool_table=None, timeout: float = 60.0) -> Rs274Result
             cmd += ["-t", str(_materialise(tool_table, tmp / "tool.tbl"))]
         out = tmp / "canon.txt"
         cmd += ["-g", str(prog), str(out)]
+        # rs274 (LinuxCNC 2.9) keeps its tool table in $HOME/.tool.mmap: runs side by
+        # side under one HOME read each other's tables (tools not found, SIGBUS), so
+        # each run gets its own HOME
+        env = {**os.environ, "HOME": str(tmp)}
         proc = subprocess.run(
-            cmd, cwd=tmp, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL
+            cmd,
+            cwd=tmp,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            stdin=subprocess.DEVNULL,
+            env=env,
         )
         canon = out.read_text() if out.exists() else ""
     moves, other = parse_canon(canon)
