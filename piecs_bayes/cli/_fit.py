@@ -198,7 +198,7 @@ def _machine_files(args, study, fit, path, out, route, why, console):
             console.step(f"adjusted program: {adj!r}")
     inputs = [study.path, *study.probe_files] + ([study.program] if study.program else [])
     machine = write_machine_files(
-        study, fit, out, route=route, why=why, alternatives=args.alternatives, program=adj,
+        study, fit, out, route=(route, why), alternatives=args.alternatives, program=adj,
         program_path=args.program_out, unavailable=unavailable, gain=args.gain, protect=inputs,
     )  # fmt: skip
     for line in machine.lines():

@@ -178,7 +178,7 @@ def _machine_files(args, res, out: Path, console):
         why = res.unavailable.get("errspec", "the job made no error spec")
         unavailable.update(errspec=why, tool_offset=why)
     machine = write_machine_files(
-        res.study, res.fit, out, route=res.apply, why=res.apply_why,
+        res.study, res.fit, out, route=(res.apply, res.apply_why),
         alternatives=args.alternatives, program=res.program, unavailable=unavailable,
         gain=dict(res.gains), protect=[f.path for f in res.inputs],
     )  # fmt: skip

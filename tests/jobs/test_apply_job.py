@@ -68,7 +68,7 @@ def test_route_file_names_are_the_files_written(study, tmp_path):
     for route in APPLY_ROUTES:
         r = replace(res, apply=route)
         mf = write_machine_files(
-            study, res.fit, tmp_path / route, route=route, program=res.program,
+            study, res.fit, tmp_path / route, route=(route, ""), program=res.program,
             gain=dict(res.gains),
         )  # fmt: skip
         written = {p.name for p in mf.written}

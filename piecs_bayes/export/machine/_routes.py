@@ -171,8 +171,7 @@ def write_machine_files(
     fit,
     out,
     *,
-    route: str,
-    why: str = "",
+    route: tuple[str, str],
     alternatives: bool = False,
     program=None,
     program_path=None,
@@ -186,7 +185,7 @@ def write_machine_files(
     **Arguments:**
 
     - `study`, `fit`: the study and the fit of the part (error spec, offsets).
-    - `route`, `why`: the route chosen (`jobs.apply_route`) and why.
+    - `route`: `(route, why)`, the route chosen and why, as `jobs.apply_route` gives them.
     - `program`: the `ProgramAdjustment` of the program route, or `None` when there is
       none; `program_path` where it goes (default `out/<stem>_adjusted<suffix>`), its
       diff beside it (`<stem>.diff`, or the path's name + `.diff` when given).
@@ -196,6 +195,7 @@ def write_machine_files(
 
     **Returns:** a [`MachineFiles`][].
     """
+    route, why = route
     out = Path(out)
     protect = list(protect)
     want = (
