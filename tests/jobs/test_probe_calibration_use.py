@@ -31,6 +31,7 @@ from piecs_bayes.jobs import (
 from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_TRANSFORM,
+    SimulatedProbing,
     demo_profile,
     process_deviations,
     simulate_parts,
@@ -60,7 +61,8 @@ def test_noise_free_points_of_a_lobing_probe_give_the_truth_once_calibrated():
     centre moved 20 um; r(theta) has a slope of up to 5 um/rad, and the 68-degree
     arc's centre amplifies its residuals' misfit)."""
     sim = simulate_parts(
-        PROFILE, TRUTH, 1, ball_radius=1.0, transform=DEMO_TRANSFORM, points=8, noise_sd=0.0,
+        PROFILE, TRUTH, 1, probing=SimulatedProbing(
+            ball_radius=1.0, transform=DEMO_TRANSFORM, points=8, noise_sd=0.0),
         probe=LOBING,
     )  # fmt: skip
     good = _fit(calibrated_points(PROFILE, sim["feature"], sim["points"], DEMO_TRANSFORM, LOBING),
@@ -82,19 +84,21 @@ def test_the_budget_line_is_the_calibrations_radius_uncertainty_at_the_approach(
     """All points of dia_24 are approached along -X (180 degrees): the calibration's
     share of its offset's variance is u(r(180 deg))^2 exactly (the radius moves every
     residual alike: the offset follows one for one, the rotation not at all)."""
-    from piecs_bayes.uncertainty import linearised_toolpath
+    from piecs_bayes.uncertainty import LinearisedOptions, linearised_toolpath
 
     sim = simulate_parts(
-        PROFILE, TRUTH, 1, ball_radius=1.0, transform=DEMO_TRANSFORM, points=FEW, noise_sd=SIGMA,
+        PROFILE, TRUTH, 1, probing=SimulatedProbing(
+            ball_radius=1.0, transform=DEMO_TRANSFORM, points=FEW, noise_sd=SIGMA),
         probe=LOBING, rng=4,
     )  # fmt: skip
     pts = calibrated_points(PROFILE, sim["feature"], sim["points"], DEMO_TRANSFORM, LOBING)
     radius = RadiusComponents.from_calibration(LOBING)
     assert radius.names == tuple(f"probe_cal_{j}" for j in range(1, 6))
     u = linearised_toolpath(
-        PROFILE, sim["feature"], pts, _fit(pts, sim, LOBING.r0), ball_radius=LOBING.r0,
-        sigma=SIGMA, transform=DEMO_TRANSFORM, source_sd={"x_centre": 0.001, **radius.source_sd},
-        radius=radius,
+        PROFILE, sim["feature"], pts, _fit(pts, sim, LOBING.r0), sigma=SIGMA,
+        options=LinearisedOptions(
+            ball_radius=LOBING.r0, transform=DEMO_TRANSFORM,
+            source_sd={"x_centre": 0.001, **radius.source_sd}, radius=radius),
     )  # fmt: skip
     assert set(u.deviation_budget) == {"repeatability", "x_centre", CALIBRATION_SOURCE, "total"}
     i = [f.id for f in PROFILE.features].index("dia_24") * 2  # lines before it: 2 params each
