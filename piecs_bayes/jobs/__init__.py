@@ -43,6 +43,7 @@ from ._decide import decide_features as decide_features
 from ._decide import decide_study as decide_study
 from ._feedback import FeatureFeedback as FeatureFeedback
 from ._feedback import FeedbackResult as FeedbackResult
+from ._feedback import FeedbackSettings as FeedbackSettings
 from ._feedback import feedback_from_values as feedback_from_values
 from ._feedback import feedback_study as feedback_study
 from ._feedback_result import feedback_comparison as feedback_comparison
