@@ -61,6 +61,7 @@ from ._init import init_study as init_study
 from ._init import study_from_program as study_from_program
 from ._machine import error_spec as error_spec
 from ._machine import tool_offsets as tool_offsets
+from ._main import JobOptions as JobOptions
 from ._main import run_job as run_job
 from ._options import bayes_options as bayes_options
 from ._options import bayes_sources as bayes_sources

@@ -221,7 +221,7 @@ def test_a_calibration_at_another_feed_or_too_old_is_a_warning_in_the_report(cal
     from dataclasses import replace
 
     from piecs_bayes.export import report_html
-    from piecs_bayes.jobs import calibration_warnings, run_job
+    from piecs_bayes.jobs import JobOptions, calibration_warnings, run_job
 
     study = load_study(_edit(calibrated_study, "feed = 200.0", "feed = 400.0"))
     day = dt.date(2026, 12, 2)
@@ -232,7 +232,7 @@ def test_a_calibration_at_another_feed_or_too_old_is_a_warning_in_the_report(cal
     assert "is 2 days old (made 2026-11-30)" in msg
     assert calibration_warnings(replace(old, calibration_max_age_days=30.0), today=day) == []
     with pytest.warns(UserWarning, match="probing feed of 200 mm/min"):
-        res = run_job(study, bayes=False)
+        res = run_job(study, JobOptions(bayes=False))
     assert any("probing feed" in w for w in res.warnings)
     assert {i.role: i.path.name for i in res.inputs}["probe calibration"] == "probe_cal.json"
     html = report_html(res)
