@@ -88,20 +88,23 @@ def register(subparsers) -> None:
 def run_job_from_args(args, console):
     """Run the main job with the CLI's options and progress on the console."""
     from ..errors import InputError
-    from ..jobs import run_job
+    from ..jobs import JobOptions, run_job
 
     if args.steps is not None and args.steps < 100:
         raise InputError(f"--steps: got {args.steps}, expected at least 100", value=args.steps)
-    return run_job(
-        args.study,
-        part=args.part,
+    options = JobOptions(
         bayes=not args.no_bayes,
         nsteps=args.steps,
         seed=args.seed,
         nose_radius=args.nose_radius,
         tool_table=args.tool_table,
-        progress=False if console.quiet else console.step,
         apply=args.apply,
+    )
+    return run_job(
+        args.study,
+        options,
+        part=args.part,
+        progress=False if console.quiet else console.step,
     )
 
 

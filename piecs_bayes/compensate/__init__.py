@@ -13,4 +13,5 @@ from ._tool_offsets import AxisCorrection as AxisCorrection
 from ._tool_offsets import OffsetSettings as OffsetSettings
 from ._tool_offsets import ToolOffsets as ToolOffsets
 from ._tool_offsets import ToolOffsetUpdate as ToolOffsetUpdate
+from ._tool_offsets import WearOffset as WearOffset
 from ._tool_offsets import tool_offset_update as tool_offset_update

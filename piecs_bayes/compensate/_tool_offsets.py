@@ -62,6 +62,32 @@ class OffsetSettings:
 
 
 @dataclass(frozen=True)
+class WearOffset:
+    """Where an update goes: `tool` (turret station; LinuxCNC's tool-table entry), >= 1;
+    `offset`, the wear offset number the controller keeps its wear in (Fanuc
+    `G10 P<offset>`), >= 1, default `tool`; `x_mode`, whether the controller states X
+    as a diameter (`"diameter"`, default) or a radius; `source`, where the tool number
+    came from (written with the update, e.g. the program's T word)."""
+
+    tool: int
+    offset: int | None = None
+    x_mode: XMode = "diameter"
+    source: str = ""
+
+    def __post_init__(self):
+        tool = self.tool
+        if isinstance(tool, bool) or not isinstance(tool, int) or tool < 1:
+            raise InputError(f"tool must be an integer >= 1, got {tool!r}", value=tool)
+        offset = tool if self.offset is None else self.offset
+        if isinstance(offset, bool) or not isinstance(offset, int) or offset < 1:
+            raise InputError(f"offset must be an integer >= 1, got {offset!r}", value=offset)
+        object.__setattr__(self, "offset", offset)
+        x_mode = self.x_mode
+        if x_mode not in ("diameter", "radius"):
+            raise InputError(f"x_mode must be 'diameter' or 'radius', got {x_mode!r}", value=x_mode)
+
+
+@dataclass(frozen=True)
 class ToolOffsets:
     """Current tool-table values: X (in the update's `x_mode`), Z, nose radius R (mm)."""
 
@@ -181,7 +207,7 @@ def _axis(axis, error, u, st: OffsetSettings, sign: float) -> AxisCorrection:
 
 
 def tool_offset_update(
-    tool: int,
+    target: WearOffset,
     *,
     x_error: float | None = None,
     u_x: float = 0.0,
@@ -190,20 +216,16 @@ def tool_offset_update(
     nose_radius_error: float | None = None,
     u_r: float = 0.0,
     settings: OffsetSettings | None = None,
-    x_mode: XMode = "diameter",
     raise_on_block: bool = False,
-    offset: int | None = None,
-    source: str = "",
 ) -> ToolOffsetUpdate:
-    """Wear-offset corrections for `tool` from measured mean errors (see module docstring).
+    """Wear-offset corrections for a tool from measured mean errors (see module docstring).
 
     **Arguments:**
 
-    - `tool`: tool number (turret station; LinuxCNC tool-table entry), >= 1.
-    - `offset`: wear offset number (Fanuc `G10 P`), >= 1; default `tool`.
-    - `source`: where the tool number came from (written with the update).
+    - `target`: the tool, its wear offset number, the X mode and where the tool number
+      came from (a [`WearOffset`][]).
     - `x_error`, `u_x`: mean X error and its standard uncertainty (mm), a diameter error
-      when `x_mode="diameter"`, radial when `"radius"`.
+      when `target.x_mode="diameter"`, radial when `"radius"`.
     - `z_error`, `u_z`: mean Z error (mm); `nose_radius_error`, `u_r`: effective minus
       table nose radius (mm). `None` means not measured (no change).
     - `settings`: null band, feedback gain, upper limit, significance factor.
@@ -212,13 +234,7 @@ def tool_offset_update(
     **Returns:** a [`ToolOffsetUpdate`][].
     """
     st = settings if settings is not None else OffsetSettings()
-    if isinstance(tool, bool) or not isinstance(tool, int) or tool < 1:
-        raise InputError(f"tool must be an integer >= 1, got {tool!r}", value=tool)
-    offset = tool if offset is None else offset
-    if isinstance(offset, bool) or not isinstance(offset, int) or offset < 1:
-        raise InputError(f"offset must be an integer >= 1, got {offset!r}", value=offset)
-    if x_mode not in ("diameter", "radius"):
-        raise InputError(f"x_mode must be 'diameter' or 'radius', got {x_mode!r}", value=x_mode)
+    tool = target.tool
     if all(e is None for e in (x_error, z_error, nose_radius_error)):
         raise InputError(f"tool {tool}: no error given (x_error, z_error, nose_radius_error)")
     x = _axis("x", x_error, float(u_x), st, -1.0)
@@ -248,13 +264,13 @@ def tool_offset_update(
         reasons.insert(0, msg)
     return ToolOffsetUpdate(
         tool=tool,
-        x_mode=x_mode,
+        x_mode=target.x_mode,
         x=x,
         z=z,
         r=r,
         blocked=bool(blocked_axes),
         reasons=tuple(reasons),
         settings=st,
-        offset=offset,
-        source=str(source),
+        offset=target.offset,
+        source=str(target.source),
     )

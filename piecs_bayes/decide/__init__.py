@@ -7,6 +7,7 @@ from ._conformance import Conformance as Conformance
 from ._conformance import conformance as conformance
 from ._corrections import corrections as corrections
 from ._decision import Decision as Decision
+from ._decision import DrawnFeature as DrawnFeature
 from ._decision import decide as decide
 from ._settings import DecisionSettings as DecisionSettings
 from ._settings import settings_from_spec as settings_from_spec

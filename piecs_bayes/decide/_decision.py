@@ -147,6 +147,28 @@ class Decision:
         return "\n".join(lines)
 
 
+@dataclass(frozen=True)
+class DrawnFeature:
+    """The feature a decision is for, as its drawing states it.
+
+    - `id`: carried into the result and error messages.
+    - `coordinate`, `scale`: the coordinate the tolerance is drawn on and the drawn
+      deviation per unit of normal deviation (`geometry.drawn_scale`: 2 on a
+      diameter); they change only how the result is stated (reasons, `drawn_*`),
+      never the verdict.
+    """
+
+    id: str | None = None
+    coordinate: str = "normal"
+    scale: float = 1.0
+
+    def __post_init__(self):
+        s = self.scale
+        if isinstance(s, bool) or not isinstance(s, numbers.Real) or not math.isfinite(s):
+            raise InputError(f"scale must be a finite number, got {s!r}", feature=self.id, value=s)
+        object.__setattr__(self, "scale", float(s))
+
+
 # --------------------------------------------------------------------------- more points
 
 
@@ -207,10 +229,8 @@ def decide(
     n_points: int | None = None,
     u_systematic: float = 0.0,
     run_index: int = 1,
-    feature: str | None = None,
     dof: float = math.inf,
-    coordinate: str = "normal",
-    scale: float = 1.0,
+    feature: DrawnFeature | None = None,
 ) -> Decision:
     """Decide whether to compensate one feature.
 
@@ -223,17 +243,17 @@ def decide(
     - `n_points`: probe points behind the estimate (needed for "how many more").
     - `u_systematic`: part of `sd` that more points do not reduce (mm).
     - `run_index`: $t$ of Grubbs' harmonic rule (1 for a first setup adjustment).
-    - `feature`: id carried into the result and error messages.
     - `dof`: (effective) degrees of freedom of `sd` (`inf`: normal). Finite: the
       deviation is `mean + sd * t_dof` (see the module doc); not with `samples`.
-    - `coordinate`, `scale`: the coordinate the tolerance is drawn on and the drawn
-      deviation per unit of normal deviation (`geometry.drawn_scale`); they change
-      only how the result is stated (reasons, `drawn_*`), never the verdict.
+    - `feature`: its id and how its tolerance is drawn (a [`DrawnFeature`][]; default:
+      no id, the normal deviation as drawn).
 
     **Returns:** a [`Decision`][] with the verdict, the gain and correction, every
     action's expected loss, significance, conformance before and after, and reasons.
     """
     st = settings if settings is not None else DecisionSettings()
+    drawn = feature if feature is not None else DrawnFeature()
+    feature, coordinate, scale = drawn.id, drawn.coordinate, drawn.scale
     lo, hi = _tolerance(tolerance, feature)
     m0, s0, smp, dof = _checked_inputs(
         mean, sd, samples, u_systematic, dof, run_index, n_points, feature

@@ -35,6 +35,7 @@ from ._gauge_moves import gauge_moves as gauge_moves
 from ._gauge_moves import read_gauge_program as read_gauge_program
 from ._gauging import CONTROLLERS as CONTROLLERS
 from ._gauging import GAUGING_NAMES as GAUGING_NAMES
+from ._gauging import GaugingOptions as GaugingOptions
 from ._gauging import gauging_program as gauging_program
 from ._header import comment_style as comment_style
 from ._header import comment_text as comment_text

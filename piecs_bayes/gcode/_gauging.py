@@ -18,6 +18,7 @@ Every move but the probe moves is a rapid. The programs: docs/models/gauging.md.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 from ..errors import InputError
 from ._header import comment_text
@@ -34,23 +35,44 @@ def _coord(v_mm: float, *, x: bool, diameter: bool, inch: bool, decimals: int) -
     return format_number(v, decimals=decimals)
 
 
+@dataclass(frozen=True)
+class GaugingOptions:
+    """How the gauging program is written for the control.
+
+    - `controller`: one of `CONTROLLERS`; `units`: `"mm"` or `"in"` (of the program);
+      `x_mode`: `"diameter"` or `"radius"`.
+    - `tool`, `feed_mm_min`: the probe's tool number and probing feed.
+    - `probe_file`, `log_file`: LinuxCNC's probe results and log files.
+    - `probe_on`, `probe_off`: the words that switch the probe on and off (`None`: a
+      comment says none is configured).
+    - `program_number`: Fanuc's `O` number; `decimals`: of the coordinates (default 4
+      in mm, 5 in inches).
+    """
+
+    controller: str
+    units: str
+    x_mode: str
+    tool: int
+    feed_mm_min: float
+    probe_file: str = "probe_points.txt"
+    log_file: str = "probe_log.txt"
+    probe_on: str | None = None
+    probe_off: str | None = None
+    program_number: int = 9001
+    decimals: int | None = None
+
+    def __post_init__(self):
+        if self.controller not in CONTROLLERS:
+            raise InputError(f"controller: got {self.controller!r}, expected one of {CONTROLLERS}")
+
+
 def gauging_program(
     home: tuple[float, float],
     path: Sequence[tuple[str, tuple[float, float]]],
     points: Sequence,
     *,
-    controller: str,
-    units: str,
-    x_mode: str,
-    tool: int,
-    feed_mm_min: float,
+    options: GaugingOptions,
     header: Sequence[str],
-    probe_file: str = "probe_points.txt",
-    log_file: str = "probe_log.txt",
-    probe_on: str | None = None,
-    probe_off: str | None = None,
-    program_number: int = 9001,
-    decimals: int | None = None,
 ) -> str:
     """The program text (module docstring).
 
@@ -62,14 +84,13 @@ def gauging_program(
       mm, radius X).
     - `points`: the plan's points in the same order as its probe moves (for the
       comments).
-    - `units`: `"mm"` or `"in"` (of the program), `x_mode`: `"diameter"` or `"radius"`.
-    - `tool`, `feed_mm_min`: the probe's tool number and probing feed.
+    - `options`: the control, units, X mode, probe tool and feed, files and codes
+      (a [`GaugingOptions`][]).
     - `header`: the traceability texts (one comment line each).
     """
-    if controller not in CONTROLLERS:
-        raise InputError(f"controller: got {controller!r}, expected one of {CONTROLLERS}")
-    inch, dia = units == "in", x_mode == "diameter"
-    dec = decimals if decimals is not None else (5 if inch else 4)
+    o = options
+    inch, dia = o.units == "in", o.x_mode == "diameter"
+    dec = o.decimals if o.decimals is not None else (5 if inch else 4)
 
     def xz(p):
         return (
@@ -78,25 +99,25 @@ def gauging_program(
         )
 
     feed = format_number(
-        feed_mm_min / (MM_PER_INCH if inch else 1.0), decimals=1 if not inch else 3
+        o.feed_mm_min / (MM_PER_INCH if inch else 1.0), decimals=1 if not inch else 3
     )
-    fanuc = controller == "fanuc"
+    fanuc = o.controller == "fanuc"
     out = ["%"]
     if fanuc:
-        out.append(f"O{program_number:04d} (PIECS GAUGING)")
+        out.append(f"O{o.program_number:04d} (PIECS GAUGING)")
     out += [f"({comment_text(t)})" for t in header]
     units_g = "G20" if inch else "G21"
     if fanuc:
         out.append(f"G18 {units_g} G40 G90 G98")
-        out.append(f"T{tool:02d}{tool:02d} (PROBE)")
+        out.append(f"T{o.tool:02d}{o.tool:02d} (PROBE)")
     else:
         out.append(f"G18 {'G7' if dia else 'G8'} {units_g} G40 G90 G94")
-        out.append(f"T{tool} M6 G43 (probe)")
+        out.append(f"T{o.tool} M6 G43 (probe)")
     out.append("M5 (spindle stopped before any probe move)")
-    out.append(probe_on if probe_on else "(probe on: no code configured, see [plan] probe_on)")
-    out.append("POPEN" if fanuc else f"(PROBEOPEN {probe_file})")
+    out.append(o.probe_on if o.probe_on else "(probe on: no code configured, see [plan] probe_on)")
+    out.append("POPEN" if fanuc else f"(PROBEOPEN {o.probe_file})")
     if not fanuc:
-        out.append(f"(LOGOPEN,{log_file})")
+        out.append(f"(LOGOPEN,{o.log_file})")
     x_home = _coord(home[0], x=True, diameter=dia, inch=inch, decimals=dec)
     z_home = _coord(home[1], x=False, diameter=dia, inch=inch, decimals=dec)
     out += [f"G0 X{x_home} (retract line)", f"G0 Z{z_home}"]
@@ -122,7 +143,9 @@ def gauging_program(
     if not fanuc:
         out.append("(LOGCLOSE)")
     out.append("PCLOS" if fanuc else "(PROBECLOSE)")
-    out.append(probe_off if probe_off else "(probe off: no code configured, see [plan] probe_off)")
+    out.append(
+        o.probe_off if o.probe_off else "(probe off: no code configured, see [plan] probe_off)"
+    )
     out.append("M30")
     out.append("%")
     return "\n".join(out) + "\n"

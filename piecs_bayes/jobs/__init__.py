@@ -37,6 +37,7 @@ from ._decide import decide_features as decide_features
 from ._decide import decide_study as decide_study
 from ._feedback import FeatureFeedback as FeatureFeedback
 from ._feedback import FeedbackResult as FeedbackResult
+from ._feedback import FeedbackSettings as FeedbackSettings
 from ._feedback import feedback_from_values as feedback_from_values
 from ._feedback import feedback_study as feedback_study
 from ._feedback_result import feedback_comparison as feedback_comparison
@@ -57,6 +58,7 @@ from ._machine import MachineData as MachineData
 from ._machine import error_spec as error_spec
 from ._machine import machine_data as machine_data
 from ._machine import tool_offsets as tool_offsets
+from ._main import JobOptions as JobOptions
 from ._main import run_job as run_job
 from ._options import bayes_options as bayes_options
 from ._options import bayes_sources as bayes_sources

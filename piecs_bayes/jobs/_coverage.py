@@ -26,7 +26,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import MachineTransform, Profile
-from ..uncertainty import linearised_toolpath, monte_carlo_toolpath, path_function, path_grid
+from ..uncertainty import (
+    LinearisedOptions,
+    linearised_toolpath,
+    monte_carlo_toolpath,
+    path_function,
+    path_grid,
+)
 from ._probe_radius import calibrated_points, radius_components
 
 
@@ -178,7 +184,7 @@ def coverage_check(
     **Returns:** a [`CoverageResult`][].
     """
     from ..fit import TUNING, fit_profiles, to_part_frame
-    from ..simulate import simulate_parts
+    from ..simulate import SimulatedProbing, simulate_parts
 
     o = options
     n_parts, points, noise_sd, ball_radius, transform = (
@@ -189,9 +195,12 @@ def coverage_check(
     )  # fmt: skip
     band_sims, seed, probe, calibrated = o.band_sims, o.seed, o.probe, o.calibrated
     source_sd = dict(o.source_sd or {})
+    probing = SimulatedProbing(
+        ball_radius=ball_radius, transform=transform, points=points, noise_sd=noise_sd,
+        margin=margin,
+    )  # fmt: skip
     sim = simulate_parts(
-        profile, truth, n_parts, ball_radius=ball_radius, transform=transform, points=points,
-        noise_sd=noise_sd, source_sd=source_sd, rng=seed, margin=margin, probe=probe,
+        profile, truth, n_parts, probing=probing, source_sd=source_sd, rng=seed, probe=probe,
         probe_error=calibrated,
     )  # fmt: skip
     radius = None
@@ -217,15 +226,17 @@ def coverage_check(
     values = {f.id: bf.values(f.id) for f in feats}
     n_pts = len(sim["part"]) // n_parts
     routes = {"linearised": []}
+    options = LinearisedOptions(
+        ball_radius=ball_radius, transform=transform, source_sd=prop_sd, grid=grid, p=p,
+        band_sims=band_sims, loss=loss if method == "robust" else "linear", radius=radius,
+    )  # fmt: skip
     for i in range(n_parts):
         rows = slice(i * n_pts, (i + 1) * n_pts)
         k = keep[rows]
         u = linearised_toolpath(
             profile, sim["feature"][rows], sim["points"][rows],
-            {fid: v[i] for fid, v in values.items()}, ball_radius=ball_radius, inlier=k,
-            sigma=float(bf.sigma[i]), dof=float(bf.sigma_dof[i]), transform=transform,
-            source_sd=prop_sd, grid=grid, p=p, band_sims=band_sims,
-            loss=loss if method == "robust" else "linear", radius=radius,
+            {fid: v[i] for fid, v in values.items()}, options=options, inlier=k,
+            sigma=float(bf.sigma[i]), dof=float(bf.sigma_dof[i]),
         )  # fmt: skip
         routes["linearised"].append(_hits(u, truth_dev, true_v, true_o, fixed))
     if o.bayes:

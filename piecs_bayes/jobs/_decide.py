@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..decide import Decision, DecisionSettings, decide
+from ..decide import Decision, DecisionSettings, DrawnFeature, decide
 from ..errors import InputError
 from ..geometry import drawn_scale
 from ..io import rows_to_dataframe
@@ -124,9 +124,9 @@ def _estimate(feature, est):
     )
 
 
-def _drawn(fid: str, coordinates) -> dict:
+def _drawn(fid: str, coordinates) -> DrawnFeature:
     coordinate, scale = (coordinates or {}).get(fid, ("normal", 1.0))
-    return {"coordinate": coordinate, "scale": float(scale)}
+    return DrawnFeature(fid, coordinate, float(scale))
 
 
 def decide_features(
@@ -177,9 +177,8 @@ def decide_features(
                 n_points=n_pts,
                 u_systematic=u_sys,
                 run_index=run_index,
-                feature=fid,
                 dof=dof,
-                **_drawn(fid, coordinates),
+                feature=_drawn(fid, coordinates),
             )
         )
         chars.append(char)

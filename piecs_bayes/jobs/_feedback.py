@@ -21,7 +21,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 import numpy as np
@@ -183,6 +183,33 @@ def _ro(a) -> np.ndarray:
     return a
 
 
+@dataclass(frozen=True)
+class FeedbackSettings:
+    """What the feedback over a run replays (the study's `[feedback]` table).
+
+    - `tool_changes`: part ids cut first with a new tool (declared steps).
+    - `policies`: the policies to replay (default: all, `feedback.POLICIES`).
+    - `characteristic`: the nominal point of the values (`"mid"`, `"start"`, `"end"`).
+    - `inspect_every`, `delay`: the values are every `inspect_every`-th part of the
+      run, and a result arrives `delay` parts late (see `feedback.replay`): the
+      replay, the tracking and the next part follow.
+    """
+
+    tool_changes: tuple[str, ...] = ()
+    policies: tuple[str, ...] = POLICIES
+    characteristic: str = "mid"
+    inspect_every: int = 1
+    delay: int = 0
+
+    def __post_init__(self):
+        object.__setattr__(self, "tool_changes", tuple(self.tool_changes))
+        object.__setattr__(self, "policies", tuple(self.policies))
+        for p in self.policies:
+            if p not in POLICIES:
+                raise InputError(f"unknown policy {p!r}; expected some of {', '.join(POLICIES)}",
+                                 value=p)  # fmt: skip
+
+
 def feedback_from_values(
     values: Mapping[str, Sequence[float]],
     u: Mapping[str, Sequence[float]],
@@ -190,16 +217,11 @@ def feedback_from_values(
     profile,
     parts: Mapping[str, Sequence[str]],
     u_systematic: Mapping[str, float] | None = None,
-    tool_changes: Sequence[str] = (),
-    policies: Sequence[str] = POLICIES,
     finish=None,
-    characteristic: str = "mid",
+    settings: FeedbackSettings | None = None,
     study: str = "",
     method: str = "",
-    notes: Sequence[str] = (),
     progress=False,
-    inspect_every: int = 1,
-    delay: int = 0,
 ) -> FeedbackResult:
     """Feedback over a run from per-part values (pure; see the module doc).
 
@@ -210,23 +232,19 @@ def feedback_from_values(
     - `profile`: the study's profile (tolerances and drawn coordinates).
     - `parts`: by feature id, the part ids of the values.
     - `u_systematic`: by feature, the systematic uncertainty common to every part (mm).
-    - `tool_changes`: part ids cut first with a new tool (declared steps).
-    - `policies`: the policies to replay (default: all).
     - `finish`: finished-part measurements (`io.FinishData`) or `None`.
+    - `settings`: the declared tool changes, the policies, the nominal point, the
+      inspection interval and delay (a [`FeedbackSettings`][]; default: its defaults).
+    - `study`, `method`: labels kept in the result.
     - `progress`: `True` (print), a callable `progress(message)`, or `False`.
-    - `inspect_every`, `delay`: the values are every `inspect_every`-th part of the
-      run, and a result arrives `delay` parts late (`[feedback]`; see
-      `compensate.replay`): the replay, the tracking and the next part follow.
 
     **Returns:** a [`FeedbackResult`][].
     """
+    st = settings if settings is not None else FeedbackSettings()
+    policies, inspect_every, delay = st.policies, st.inspect_every, st.delay
     say = _progress_fn(progress)
-    notes = list(notes)
-    for p in policies:
-        if p not in POLICIES:
-            raise InputError(f"unknown policy {p!r}; expected some of {', '.join(POLICIES)}",
-                             value=p)  # fmt: skip
-    declared = set(tool_changes)
+    notes: list[str] = []
+    declared = set(st.tool_changes)
     feats = {}
     for fid in profile.ids:
         if fid not in values:
@@ -246,7 +264,7 @@ def feedback_from_values(
         study=study,
         parts=all_parts,
         method=method,
-        characteristic=characteristic,
+        characteristic=st.characteristic,
         features=MappingProxyType(feats),
         policies=tuple(policies) + tuple(f"{p} (a)" for p in policies if p in SHOP_SETTINGS),
         tool_changes=tuple(p for p in all_parts if p in declared),
@@ -343,9 +361,12 @@ def feedback_study(study, *, probe=None, finish=None, progress=True) -> Feedback
         study, probe, method=used, at=at, sources=source_sds(study), progress=fitted
     )
     notes += more
-    return feedback_from_values(
-        values, us, profile=study.profile, parts=pids, u_systematic=usys,
-        tool_changes=declared, policies=cfg.get("policies", POLICIES), finish=fin,
-        characteristic=at, study=study.name, method=used, notes=notes, progress=say,
-        inspect_every=cfg.get("inspect_every", 1), delay=cfg.get("delay", 0),
+    settings = FeedbackSettings(
+        tool_changes=declared, characteristic=at,
+        **{k: cfg[k] for k in ("policies", "inspect_every", "delay") if k in cfg},
     )  # fmt: skip
+    res = feedback_from_values(
+        values, us, profile=study.profile, parts=pids, u_systematic=usys, finish=fin,
+        settings=settings, study=study.name, method=used, progress=say,
+    )  # fmt: skip
+    return replace(res, notes=(*notes, *res.notes))

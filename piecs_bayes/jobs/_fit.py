@@ -302,7 +302,12 @@ def toolpath_uncertainty(
     **Returns:** ``{"linearised": ToolpathUncertainty, "monte_carlo": ... or None}``.
     """
     from ..fit import prior_from_spec
-    from ..uncertainty import LINEARISED_SOURCES, linearised_toolpath, monte_carlo_toolpath
+    from ..uncertainty import (
+        LINEARISED_SOURCES,
+        LinearisedOptions,
+        linearised_toolpath,
+        monte_carlo_toolpath,
+    )
 
     data = inliers(fit, _part_data(study, probe, part or fit.part))
     gain = study.compensation.gain if gain is None else gain
@@ -316,20 +321,23 @@ def toolpath_uncertainty(
             source_sd[name] = prior_from_spec(name, dict(spec), file=str(study.path)).sd
     radius = radius_components(study.probe.calibration)
     source_sd.update(calibration_sds(study))
+    options = LinearisedOptions(
+        ball_radius=study.probe.ball_radius,
+        loss=_fit_loss(fit),
+        transform=study.transform,
+        source_sd=source_sd,
+        gain=gain,
+        radius=radius,
+    )
     lin = linearised_toolpath(
         study.profile,
         data.feature,
         data.points,
         fit.deviations,
-        ball_radius=study.probe.ball_radius,
+        options=options,
         sigma=sigma,
         dof=dof,
-        loss=_fit_loss(fit),
-        transform=study.transform,
-        source_sd=source_sd,
         approach=data.approach if "pretravel" in source_sd or radius else None,
-        gain=gain,
-        radius=radius,
     )
     mc = None
     if bayes is not None:

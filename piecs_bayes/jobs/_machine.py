@@ -16,7 +16,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import __version__
-from ..compensate import CompensationTable, ErrorSpec, ToolOffsetUpdate, tool_offset_update
+from ..compensate import (
+    CompensationTable,
+    ErrorSpec,
+    ToolOffsetUpdate,
+    WearOffset,
+    tool_offset_update,
+)
 from ..errors import AnalysisError, InputError
 from ..fit import coverage_factor
 from ..geometry import Arc, Line, part_to_machine
@@ -274,7 +280,7 @@ def tool_offsets(study, fit) -> tuple[ToolOffsetUpdate, tuple[str, ...]]:
 
     def update(x_e, z_e):
         return tool_offset_update(
-            tool,
+            WearOffset(tool, offset, x_mode, source),
             x_error=None if x_e is None else xs_factor * x_e,
             u_x=0.0 if u_x is None else xs_factor * u_x,
             z_error=z_e,
@@ -282,9 +288,6 @@ def tool_offsets(study, fit) -> tuple[ToolOffsetUpdate, tuple[str, ...]]:
             nose_radius_error=r_err,
             u_r=0.0 if u_r is None else u_r,
             settings=st,
-            x_mode=x_mode,
-            offset=offset,
-            source=source,
         )
 
     if x_err is None and z_err is None and r_err is None:

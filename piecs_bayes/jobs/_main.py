@@ -106,31 +106,11 @@ class _Run:
             self.timings[step] = self.timings.get(step, 0.0) + time.perf_counter() - t0
 
 
-def run_job(
-    study,
-    *,
-    part: str | None = None,
-    method: str | None = None,
-    bayes: bool = True,
-    nsteps: int | None = None,
-    seed: int = 0,
-    decisions: bool = True,
-    uncertainty: bool = True,
-    program: bool = True,
-    nose_radius: float | None = None,
-    tool_table=None,
-    errspec: bool = True,
-    capability: bool | str = "auto",
-    capability_files: Sequence | None = None,
-    progress: bool | Callable[[str], None] = False,
-    apply: str | None = None,
-) -> JobResults:
-    """Run the main job on one study (one part) and return the results bundle.
+@dataclass(frozen=True)
+class JobOptions:
+    """What the main job does ([`run_job`][]); every step after the robust fit can be
+    switched off.
 
-    **Arguments:**
-
-    - `study`: a `Study` or the path of a study file.
-    - `part`: the part to fit when the probe data hold several (default: the first).
     - `method`: `"robust"` or `"lsq"` (default: the study's `fit.method`; `"bayes"` there
       means a robust fit first).
     - `bayes`: also sample the posterior (`nsteps` per ensemble, default the study's
@@ -147,34 +127,74 @@ def run_job(
       (default: the study's `[program] nose_radius` or `tool_table`, else `[offsets]
       current_r`, else no nose-radius check).
     - `errspec`: error specification and tool-offset update.
-    - `capability`: `"auto"` (when the probe data, or `capability_files`, hold at
-      least 3 parts), `True` or `False`.
-    - `progress`: `True` prints timed progress lines to stderr and shows the
-      sampler's progress bar; a callable receives the lines; `False` is silent.
+    - `capability`: `"auto"` (when the probe data, or the job's `capability_files`, hold
+      at least 3 parts), `True` or `False`.
     - `apply`: the route of the correction to the machine (`"program"`, `"errspec"`,
       `"tool_offset"`, `"none"`; default: the study's `[compensation] apply`, else
       `"program"` when it names a part program, else `"errspec"`).
+    """
+
+    method: str | None = None
+    bayes: bool = True
+    nsteps: int | None = None
+    seed: int = 0
+    decisions: bool = True
+    uncertainty: bool = True
+    program: bool = True
+    nose_radius: float | None = None
+    tool_table: object = None
+    errspec: bool = True
+    capability: bool | str = "auto"
+    apply: str | None = None
+
+    def __post_init__(self):
+        capability = self.capability
+        if not (capability is True or capability is False or capability == "auto"):
+            raise InputError(f"capability: got {capability!r}, expected 'auto', True or False")
+
+
+def run_job(
+    study,
+    options: JobOptions | None = None,
+    *,
+    part: str | None = None,
+    capability_files: Sequence | None = None,
+    progress: bool | Callable[[str], None] = False,
+) -> JobResults:
+    """Run the main job on one study (one part) and return the results bundle.
+
+    **Arguments:**
+
+    - `study`: a `Study` or the path of a study file.
+    - `options`: what the job does (a [`JobOptions`][]; default: every step, the
+      study's settings).
+    - `part`: the part to fit when the probe data hold several (default: the last).
+    - `capability_files`: probe files of the parts for the capability study, instead
+      of the study's probe data.
+    - `progress`: `True` prints timed progress lines to stderr and shows the
+      sampler's progress bar; a callable receives the lines; `False` is silent.
 
     **Returns:** a [`JobResults`][].
     """
+    o = options if options is not None else JobOptions()
     created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     run = _read(study, _Progress(progress))
-    run.out["apply"] = route = apply_route(run.study, apply)
+    run.out["apply"] = route = apply_route(run.study, o.apply)
     part, part_note = _choose_part(run, part)
     run.say(f"fitting {len(run.study.profile)} features")
     with run.timed("fit"):
-        run.fit = fit_study(run.study, run.probe, method=method, part=part)
+        run.fit = fit_study(run.study, run.probe, method=o.method, part=part)
     run.say(f"fitted {len(run.fit.fits)} features ({run.fit.method}, part {run.fit.part})")
     run.gains = _clip_gains({f.id: run.study.compensation.gain for f in run.study.profile.features})
-    _step_bayes(run, bayes, nsteps, seed)
-    _step_decisions(run, decisions)
-    _step_path(run, uncertainty)
-    nose_radius, tool_table = _nose_radius_and_tools(run.study, nose_radius, tool_table)
-    _step_program(run, program, nose_radius, tool_table, created)
-    _step_errspec(run, errspec)
-    _step_capability(run, capability, capability_files, method, seed)
+    _step_bayes(run, o.bayes, o.nsteps, o.seed)
+    _step_decisions(run, o.decisions)
+    _step_path(run, o.uncertainty)
+    nose_radius, tool_table = _nose_radius_and_tools(run.study, o.nose_radius, o.tool_table)
+    _step_program(run, o.program, nose_radius, tool_table, created)
+    _step_errspec(run, o.errspec)
+    _step_capability(run, o.capability, capability_files, o.method, o.seed)
     run.say(f"main job finished in {time.perf_counter() - run.t0:.1f} s; route: {route[0]}")
-    return _results(run, seed, nose_radius, tool_table, capability_files, created, part_note)
+    return _results(run, o.seed, nose_radius, tool_table, capability_files, created, part_note)
 
 
 def _read(study, say: _Progress) -> _Run:
@@ -385,9 +405,7 @@ def _step_capability(run: _Run, capability, capability_files, method, seed) -> N
         run.unavailable["capability"] = (
             f"the probe data hold {n_parts} part(s); a capability study needs at least 3"
         )
-    elif capability is not False:
-        raise InputError(f"capability: got {capability!r}, expected 'auto', True or False")
-    else:
+    else:  # False (`JobOptions` refuses anything else)
         run.skipped.append("capability")
 
 

@@ -17,6 +17,7 @@ from ._parts import DEMO_FEATURES as DEMO_FEATURES
 from ._parts import DEMO_POINTS as DEMO_POINTS
 from ._parts import DEMO_TRANSFORM as DEMO_TRANSFORM
 from ._parts import ProcessErrors as ProcessErrors
+from ._parts import SimulatedProbing as SimulatedProbing
 from ._parts import batch_part_errors as batch_part_errors
 from ._parts import demo_profile as demo_profile
 from ._parts import probe_csv_text as probe_csv_text

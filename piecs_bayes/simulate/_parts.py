@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 from dataclasses import asdict, dataclass
 from typing import NamedTuple
 
@@ -191,18 +192,37 @@ def _fractions(points, fid: str, margin: float) -> np.ndarray:
     return np.linspace(margin, 1.0 - margin, int(k)) if k > 0 else np.zeros(0)
 
 
+@dataclass(frozen=True)
+class SimulatedProbing:
+    """How the simulated parts are probed (as `simulate_probe` takes them).
+
+    - `ball_radius`: the probe's ball radius (mm); `transform`: the nominal part-to-machine
+      transform.
+    - `points`: triggers per feature (int, or by id), or by id the fractions of the
+      feature to probe (e.g. a probe plan's); `margin` applies to counts only.
+    - `noise_sd`: probe repeatability (isotropic, mm), >= 0.
+    """
+
+    ball_radius: float
+    transform: MachineTransform = MachineTransform()
+    points: int | dict = 8
+    noise_sd: float = 0.001
+    margin: float = 0.1
+
+    def __post_init__(self):
+        sd = self.noise_sd
+        if isinstance(sd, bool) or not isinstance(sd, numbers.Real) or not sd >= 0:
+            raise ValueError(f"noise_sd must be a number >= 0, got {sd!r}")
+
+
 def simulate_parts(
     profile: Profile,
     deviations: dict[str, np.ndarray],
     n_parts: int,
     *,
-    ball_radius: float,
-    transform: MachineTransform = MachineTransform(),
-    points: int | dict[str, int] = 8,
-    noise_sd: float = 0.001,
+    probing: SimulatedProbing,
     source_sd: dict[str, float] | None = None,
     rng: np.random.Generator | int = 0,
-    margin: float = 0.1,
     probe=None,
     probe_error: bool = False,
 ) -> dict:
@@ -212,8 +232,8 @@ def simulate_parts(
     **Arguments:**
 
     - `deviations`: true deviation per feature id, `(k,)` (every part) or `(n_parts, k)`.
-    - `points`: triggers per feature (int, or by id), or by id the fractions of the
-      feature to probe (e.g. a probe plan's); `margin` applies to counts only.
+    - `probing`: the ball radius, transform, points, noise and margin (a
+      [`SimulatedProbing`][]).
     - `source_sd`: standard deviations of normal per-part errors of the sources in
       `SIMULATED_SOURCES` (the ball radius is off by `d`, the real transform is
       `transform` plus the drawn errors); the fits should use the nominal values.
@@ -223,7 +243,7 @@ def simulate_parts(
       differs from it by a draw of its covariance (what a part fitted with that
       calibration sees of the calibration's own error; in `errors` as
       ``"probe_coefficients"`` ``(n_parts, p)``).
-    - the rest as `simulate_probe`.
+    - `rng`: as `simulate_probe`.
 
     **Returns:** `dict(part (str ids), feature, points (machine, radius X), errors
     {source: (n_parts,)})`, points part by part, features in profile order.
@@ -231,6 +251,8 @@ def simulate_parts(
     import jax
     import jax.numpy as jnp
 
+    ball_radius, transform, points = probing.ball_radius, probing.transform, probing.points
+    noise_sd, margin = probing.noise_sd, probing.margin
     rng = np.random.default_rng(rng)
     source_sd = dict(source_sd or {})
     for name in source_sd:

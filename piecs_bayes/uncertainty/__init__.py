@@ -31,6 +31,7 @@ from ._propagate import propagate_linear as propagate_linear
 from ._propagate import propagate_mc as propagate_mc
 from ._propagate import uncertainty_budget as uncertainty_budget
 from ._toolpath import LINEARISED_SOURCES as LINEARISED_SOURCES
+from ._toolpath import LinearisedOptions as LinearisedOptions
 from ._toolpath import PathGrid as PathGrid
 from ._toolpath import ToolpathUncertainty as ToolpathUncertainty
 from ._toolpath import linearised_toolpath as linearised_toolpath

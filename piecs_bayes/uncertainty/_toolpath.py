@@ -323,25 +323,61 @@ def _residual_jacobians(
     )
 
 
+@dataclass(frozen=True)
+class LinearisedOptions:
+    """The measurement model and the outputs of [`linearised_toolpath`][].
+
+    - `ball_radius`, `transform`: the probe's ball radius (mm) and the part-to-machine
+      transform the points were fitted with.
+    - `source_sd`: standard uncertainty of each other source (names in
+      ``LINEARISED_SOURCES``, or a probe calibration's components), e.g. the sd
+      of the study's priors.
+    - `radius`: a probe calibration's `fit.RadiusComponents` (its components in
+      `source_sd`, from `RadiusComponents.source_sd`): one systematic source,
+      correlated over the points through the coefficients; the budget shows it as
+      one line, ``"probe calibration"``.
+    - `loss`: the fit's loss. A robust (M-)estimator is less efficient than least
+      squares at the normal: the repeatability variance is multiplied by its
+      asymptotic factor $\\kappa = E[\\psi^2]/E[\\psi']^2$ (Huber: 1.053). Without it the
+      intervals of a robust fit with a known sigma covered 94.3 % instead of 95 %.
+    - `gain`: compensation gain(s); `grid`: where the offset is evaluated (default
+      `path_grid(profile)`); `p`: the coverage probability of intervals and bands.
+    - `band_sims`: quasi-random draws for the simultaneous band's critical value.
+    """
+
+    ball_radius: float
+    transform: MachineTransform = MachineTransform()
+    source_sd: dict | None = None
+    radius: object = None
+    loss: str = "linear"
+    gain: float | dict = 1.0
+    grid: PathGrid | None = None
+    p: float = 0.95
+    band_sims: int = 100_000
+
+    def __post_init__(self):
+        radius = self.radius
+        for name in self.source_sd or {}:
+            if is_calibration_source(name) and radius is not None and name in radius.names:
+                continue
+            if name not in LINEARISED_SOURCES:
+                raise InputError(
+                    f"unknown uncertainty source {name!r}; "
+                    f"expected one of {', '.join(LINEARISED_SOURCES)}"
+                )
+
+
 def linearised_toolpath(
     profile: Profile,
     feature_ids,
     machine_points,
     deviations: dict,
     *,
-    ball_radius: float,
+    options: LinearisedOptions,
     sigma: float,
     dof: float = math.inf,
-    transform: MachineTransform = MachineTransform(),
-    source_sd: dict | None = None,
     approach=None,
-    gain=1.0,
-    grid: PathGrid | None = None,
-    p: float = 0.95,
-    band_sims: int = 100_000,
-    loss: str = "linear",
     inlier=None,
-    radius=None,
 ) -> ToolpathUncertainty:
     """GUM propagation from probe points and error sources to the adjusted path.
 
@@ -356,23 +392,14 @@ def linearised_toolpath(
     - `feature_ids`, `machine_points`: the inlier triggers (outliers removed),
       ball centres in machine coordinates (radius X, mm).
     - `deviations`: the fitted deviations per feature id (the solution).
+    - `options`: the probe, the sources, the loss, the gain and the bands (a
+      [`LinearisedOptions`][]).
     - `sigma`: probe repeatability: each coordinate of each point has variance
       ``sigma**2`` (the "repeatability" source); `dof`: its degrees of freedom
       (``ProfileFit.sigma``; ``inf`` when known): intervals and bands use
       Student-t quantiles with Welch-Satterthwaite effective dof.
-    - `source_sd`: standard uncertainty of each other source (names in
-      ``LINEARISED_SOURCES``, or a probe calibration's components), e.g. the sd
-      of the study's priors.
-    - `radius`: a probe calibration's `fit.RadiusComponents` (its components in
-      `source_sd`, from `RadiusComponents.source_sd`): one systematic source,
-      correlated over the points through the coefficients; the budget shows it as
-      one line, ``"probe calibration"``.
-    - `gain`: compensation gain(s); `grid`: where the offset is evaluated.
-    - `band_sims`: quasi-random draws for the simultaneous band's critical value.
-    - `loss`: the fit's loss. A robust (M-)estimator is less efficient than least
-      squares at the normal: the repeatability variance is multiplied by its
-      asymptotic factor $\\kappa = E[\\psi^2]/E[\\psi']^2$ (Huber: 1.053). Without it the
-      intervals of a robust fit with a known sigma covered 94.3 % instead of 95 %.
+    - `approach`: the approach direction of each point (for the pretravel and a
+      probe calibration).
     - `inlier`: with every trigger given, which of them the fit kept (bool per
       point): the same result as the inliers alone (an outlier's residual row and
       its coordinates drop out), with one compiled Jacobian for every part of one
@@ -380,18 +407,12 @@ def linearised_toolpath(
 
     **Returns:** a :class:`ToolpathUncertainty` with the budget.
     """
-    source_sd = dict(source_sd or {})
-    for name in source_sd:
-        if is_calibration_source(name) and radius is not None and name in radius.names:
-            continue
-        if name not in LINEARISED_SOURCES:
-            raise InputError(
-                f"unknown uncertainty source {name!r}; "
-                f"expected one of {', '.join(LINEARISED_SOURCES)}"
-            )
+    o = options
+    ball_radius, transform, radius, gain, p = o.ball_radius, o.transform, o.radius, o.gain, o.p
+    source_sd = dict(o.source_sd or {})
     feature_ids = np.asarray(feature_ids).astype(str)
     pts = np.asarray(machine_points, dtype=float)
-    grid = grid or path_grid(profile)
+    grid = o.grid or path_grid(profile)
     names = tuple(source_sd)
     feats = profile.features
     dev0 = jnp.concatenate(
@@ -404,7 +425,7 @@ def linearised_toolpath(
     jac = np.vstack([d_dx, j_path @ d_dx])
     n_pts = pts.size
     y = np.concatenate([np.asarray(dev0), y_path])
-    var_rep = sigma**2 * normal_variance_factor(loss)
+    var_rep = sigma**2 * normal_variance_factor(o.loss)
     var_x = np.concatenate([np.full(n_pts, var_rep), np.array([source_sd[n] ** 2 for n in names])])
     cov_y = (jac * var_x) @ jac.T
     n_dev = dev0.size
@@ -426,9 +447,9 @@ def linearised_toolpath(
         # declared sources are known (Type B)
         j_rep = jac[sl_o, :n_pts]
         cov_a = (j_rep * var_rep) @ j_rep.T
-        bands = bands_linear(offset, ocov, p=p, dof=dof, cov_estimated=cov_a, n_sim=band_sims)
+        bands = bands_linear(offset, ocov, p=p, dof=dof, cov_estimated=cov_a, n_sim=o.band_sims)
     else:
-        bands = bands_linear(offset, ocov, p=p, n_sim=band_sims)
+        bands = bands_linear(offset, ocov, p=p, n_sim=o.band_sims)
     dev_val, dev_cov = _per_feature(feats, y[sl_dev], cov_y[sl_dev, sl_dev])
     return ToolpathUncertainty(
         method="linearised (GUM)",

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import special
 
-from piecs_bayes.decide import DecisionSettings, conformance, settings_from_spec
+from piecs_bayes.decide import DecisionSettings, DrawnFeature, conformance, settings_from_spec
 from piecs_bayes.decide import decide as _decide
 from piecs_bayes.errors import InputError
 
@@ -43,7 +43,7 @@ def decide(**kw):
 
 
 def test_deviation_far_above_noise_is_compensated():
-    d = decide(tolerance=TOL, mean=0.006, sd=0.0005, n_points=20, feature="D1")
+    d = decide(tolerance=TOL, mean=0.006, sd=0.0005, n_points=20, feature=DrawnFeature("D1"))
     assert d.verdict == "compensate"
     assert d.gain == pytest.approx(1.0, abs=1e-6)
     assert d.correction == pytest.approx(-0.006, abs=1e-8)
@@ -56,7 +56,7 @@ def test_deviation_far_above_noise_is_compensated():
 
 
 def test_deviation_inside_noise_is_not_compensated():
-    d = decide(tolerance=TOL, mean=0.0005, sd=0.0008, n_points=20, feature="D2")
+    d = decide(tolerance=TOL, mean=0.0005, sd=0.0008, n_points=20, feature=DrawnFeature("D2"))
     assert d.verdict == "do not compensate"
     assert d.gain == 0.0 and d.correction == 0.0
     assert d.p_exceed < 0.05
@@ -89,8 +89,8 @@ def test_reasons_are_stated_as_drawn():
     the reasons speak of the diameter in µm; a bore (scale -2) flips the signs."""
     kw = dict(tolerance=(-0.005, 0.005), mean=0.004, sd=0.0004, n_points=20)
     normal = decide(**kw)
-    dia = decide(**kw, coordinate="diameter", scale=2.0)
-    bore = decide(**kw, coordinate="diameter", scale=-2.0)
+    dia = decide(**kw, feature=DrawnFeature(coordinate="diameter", scale=2.0))
+    bore = decide(**kw, feature=DrawnFeature(coordinate="diameter", scale=-2.0))
     assert normal.verdict == dia.verdict == bore.verdict == "compensate"
     assert dia.gain == normal.gain and dia.correction == normal.correction
     assert dia.drawn_tolerance == (-0.01, 0.01) and dia.drawn_estimate == 0.008
@@ -106,7 +106,7 @@ def test_reasons_are_stated_as_drawn():
 
 
 def test_near_tolerance_with_large_uncertainty_measures_more():
-    d = decide(tolerance=TOL, mean=0.009, sd=0.006, n_points=10, feature="D3")
+    d = decide(tolerance=TOL, mean=0.009, sd=0.006, n_points=10, feature=DrawnFeature("D3"))
     assert d.verdict == "measure more"
     assert d.conformance_before.state == "ambiguous"
     assert d.more_points == 9
@@ -211,7 +211,7 @@ def test_settings_from_spec_validates_keys_and_values():
 
 def test_bad_arguments_are_named():
     with pytest.raises(InputError, match="feature 'F7'.*sd must be a finite number > 0"):
-        decide(tolerance=TOL, mean=0.0, sd=0.0, feature="F7")
+        decide(tolerance=TOL, mean=0.0, sd=0.0, feature=DrawnFeature("F7"))
     with pytest.raises(InputError, match="lower < upper"):
         decide(tolerance=(0.01, -0.01), mean=0.0, sd=0.001)
     with pytest.raises(InputError, match="either mean and sd or samples"):
@@ -295,3 +295,15 @@ def test_more_points_grow_the_degrees_of_freedom():
     assert d.more_points == first - n
     fixed = decide(tolerance=TOL, mean=mean, sd=sd * math.sqrt(n / first), dof=float(n - p))
     assert fixed.verdict == "measure more"  # at the old fixed dof it was not decided yet
+
+
+def test_drawn_feature_defaults_and_refusal():
+    """`DrawnFeature` holds what `decide` took as `feature`, `coordinate`, `scale`, with
+    the same defaults; a scale that is not a finite number is refused."""
+    assert DrawnFeature() == DrawnFeature(None, "normal", 1.0)
+    d = _decide(tolerance=TOL, mean=0.004, sd=0.0015)
+    assert (d.feature, d.coordinate, d.scale) == (None, "normal", 1.0)
+    d = _decide(tolerance=TOL, mean=0.004, sd=0.0015, feature=DrawnFeature("D9", "diameter", 2))
+    assert (d.feature, d.coordinate, d.scale) == ("D9", "diameter", 2.0)
+    with pytest.raises(InputError, match="feature 'D9'.*scale must be a finite number, got nan"):
+        DrawnFeature("D9", "diameter", float("nan"))

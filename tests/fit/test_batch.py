@@ -22,7 +22,7 @@ from piecs_bayes.jobs import (
     path_uncertainty_batch,
     robust_scale,
 )
-from piecs_bayes.uncertainty import linearised_toolpath
+from piecs_bayes.uncertainty import LinearisedOptions, linearised_toolpath
 
 BATCH = Path(__file__).resolve().parents[2] / "data" / "batch" / "study.toml"
 
@@ -136,8 +136,8 @@ def test_plain_batch_and_its_path_uncertainty_equal_the_loop(study_probe):
     one = probe.for_part("part04")
     ref = linearised_toolpath(
         study.profile, one.feature, one.points, batch.profile_fit("part04").deviations,
-        ball_radius=study.probe.ball_radius, sigma=study.probe.repeatability,
-        transform=study.transform, gain=0.8,
+        sigma=study.probe.repeatability, options=LinearisedOptions(
+            ball_radius=study.probe.ball_radius, transform=study.transform, gain=0.8),
     )  # fmt: skip
     i = batch.parts.index("part04")
     np.testing.assert_allclose(paths.offset[i], ref.offset, rtol=0, atol=1e-12)

@@ -15,7 +15,13 @@ import numpy as np
 from piecs_bayes.fit import _bayes_profile as bp
 from piecs_bayes.fit import fit_profiles_bayes, profile_log_posterior
 from piecs_bayes.geometry import MachineTransform
-from piecs_bayes.simulate import DEMO_ERRORS, demo_profile, process_deviations, simulate_parts
+from piecs_bayes.simulate import (
+    DEMO_ERRORS,
+    SimulatedProbing,
+    demo_profile,
+    process_deviations,
+    simulate_parts,
+)
 
 PROFILE = demo_profile()
 FEW = {"face_end": 3, "dia_24": 8, "taper": 4, "dia_30": 5, "fillet": 5, "shoulder": 6, "dia_44": 7}
@@ -27,8 +33,8 @@ SOURCES = {
 
 def _sim(n_parts=3, seed=5):
     truth = process_deviations(PROFILE, DEMO_ERRORS)
-    return simulate_parts(PROFILE, truth, n_parts, points=FEW, noise_sd=0.0015, rng=seed, ball_radius=1.0,
-                          margin=0.12)  # fmt: skip
+    return simulate_parts(PROFILE, truth, n_parts, rng=seed, probing=SimulatedProbing(
+        ball_radius=1.0, points=FEW, noise_sd=0.0015, margin=0.12))  # fmt: skip
 
 
 def _model(ids, weighted=False):

@@ -29,6 +29,7 @@ from piecs_bayes.jobs import bayes_sources, fit_study
 from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_TRANSFORM,
+    SimulatedProbing,
     demo_profile,
     process_deviations,
     simulate_parts,
@@ -89,8 +90,8 @@ def test_welch_satterthwaite_and_coverage_factors():
 
 def _sparse_part(seed=1, noise=0.0015):
     sim = simulate_parts(
-        PROFILE, TRUTH, 1, ball_radius=1.0, transform=DEMO_TRANSFORM, points=FEW,
-        noise_sd=noise, rng=seed, margin=0.12,
+        PROFILE, TRUTH, 1, rng=seed, probing=SimulatedProbing(
+            ball_radius=1.0, transform=DEMO_TRANSFORM, points=FEW, noise_sd=noise, margin=0.12),
     )  # fmt: skip
     return sim["feature"], to_part_frame(DEMO_TRANSFORM, sim["points"]), sim
 
@@ -131,8 +132,8 @@ def test_a_perfect_fit_reports_no_placeholder():
 
 def test_batch_fits_apply_the_rule_part_by_part():
     sim = simulate_parts(
-        PROFILE, TRUTH, 6, ball_radius=1.0, transform=DEMO_TRANSFORM, points=FEW,
-        noise_sd=0.0015, rng=4, margin=0.12,
+        PROFILE, TRUTH, 6, rng=4, probing=SimulatedProbing(
+            ball_radius=1.0, transform=DEMO_TRANSFORM, points=FEW, noise_sd=0.0015, margin=0.12),
     )  # fmt: skip
     centres = to_part_frame(DEMO_TRANSFORM, sim["points"])
     kw = dict(ball_radius=1.0, method="robust", scale=1.345 * 0.0015, declared=0.0015)

@@ -14,6 +14,7 @@ import pytest
 from piecs_bayes.errors import InputError
 from piecs_bayes.export import plan_json, plan_program
 from piecs_bayes.gcode import (
+    GaugingOptions,
     dprnt_value,
     gauge_moves,
     gauging_program,
@@ -39,10 +40,12 @@ def _fine_program(plan, **kw) -> str:
     s, st = plan.settings, plan.study
     args = dict(
         controller=s.controller, units=st.units, x_mode=s.x_mode, tool=st.probe.tool,
-        feed_mm_min=st.probe.feed, header=["test"], decimals=10,
+        feed_mm_min=st.probe.feed, decimals=10,
     )  # fmt: skip
     args.update(kw)
-    return gauging_program(plan.home, plan.path, plan.points, **args)
+    return gauging_program(
+        plan.home, plan.path, plan.points, options=GaugingOptions(**args), header=["test"]
+    )
 
 
 @pytest.mark.parametrize("controller", ["linuxcnc", "fanuc"])
@@ -195,3 +198,14 @@ def test_dprnt_values():
     assert dprnt_value(-9999.99994, 4, 4) == "-9999.9999"
     with pytest.raises(InputError, match="more than 4 integer digits"):
         dprnt_value(10000.0, 4, 4)
+
+
+def test_gauging_options_defaults_and_refusal():
+    """`GaugingOptions` holds what `gauging_program` took as keywords, with the same
+    defaults; an unknown controller is refused."""
+    o = GaugingOptions(controller="fanuc", units="mm", x_mode="radius", tool=9, feed_mm_min=200.0)
+    assert (o.probe_file, o.log_file, o.probe_on, o.probe_off, o.program_number, o.decimals) == (
+        "probe_points.txt", "probe_log.txt", None, None, 9001, None
+    )  # fmt: skip
+    with pytest.raises(InputError, match=r"controller: got 'haas', expected one of \('linuxcnc'"):
+        GaugingOptions(controller="haas", units="mm", x_mode="radius", tool=9, feed_mm_min=200.0)

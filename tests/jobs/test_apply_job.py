@@ -10,7 +10,7 @@ import pytest
 
 from piecs_bayes.errors import InputError
 from piecs_bayes.io import load_study
-from piecs_bayes.jobs import APPLY_ROUTES, apply_route, run_job
+from piecs_bayes.jobs import APPLY_ROUTES, JobOptions, apply_route, run_job
 
 DEMO = Path(__file__).resolve().parents[2] / "data" / "demo" / "study.toml"
 
@@ -45,7 +45,7 @@ def test_apply_route_default_study_and_option(study):
 def test_run_job_records_the_route_and_finishes_without_done(study):
     lines: list[str] = []
     res = run_job(
-        _with(study, "errspec"), bayes=False, uncertainty=False, capability=False,
+        _with(study, "errspec"), JobOptions(bayes=False, uncertainty=False, capability=False),
         progress=lines.append,
     )  # fmt: skip
     assert (res.apply, res.apply_why) == ("errspec", "the study's [compensation] apply")
@@ -57,7 +57,7 @@ def test_run_job_records_the_route_and_finishes_without_done(study):
     assert lines.index("fitting 7 features") < next(
         i for i, line in enumerate(lines) if line.startswith("fitted")
     )
-    res = run_job(study, bayes=False, uncertainty=False, capability=False, apply="none")
+    res = run_job(study, JobOptions(bayes=False, uncertainty=False, capability=False, apply="none"))
     assert res.apply == "none"
 
 
@@ -65,7 +65,7 @@ def test_route_file_names_are_the_files_written(study, tmp_path):
     from piecs_bayes.export import route_file_names, write_machine_files
     from piecs_bayes.jobs import machine_data
 
-    res = run_job(study, bayes=False, uncertainty=False, capability=False)
+    res = run_job(study, JobOptions(bayes=False, uncertainty=False, capability=False))
     for route in APPLY_ROUTES:
         r = replace(res, apply=route)
         data = machine_data(study, res.fit, gain=dict(res.gains), routes=(route,))
@@ -75,3 +75,18 @@ def test_route_file_names_are_the_files_written(study, tmp_path):
         assert set(names) <= written and (bool(names) == (route != "none")), (route, names)
         assert mf.alternatives == ()
         assert set(mf.as_dict()["files"]) == written
+
+
+def test_job_options_defaults_and_refusal():
+    """`JobOptions` holds what `run_job` took as keywords, with the same defaults; a bad
+    `capability` is refused with the message it had (now before the job runs)."""
+    o = JobOptions()
+    assert (o.method, o.bayes, o.nsteps, o.seed, o.decisions, o.uncertainty, o.program) == (
+        None, True, None, 0, True, True, True
+    )  # fmt: skip
+    assert (o.nose_radius, o.tool_table, o.errspec, o.capability, o.apply) == (
+        None, None, True, "auto", None
+    )  # fmt: skip
+    for bad in ("yes", 1, None):
+        with pytest.raises(InputError, match="capability: got .*, expected 'auto', True or False"):
+            JobOptions(capability=bad)

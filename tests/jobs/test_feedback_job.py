@@ -228,7 +228,7 @@ def test_finished_parts_not_in_the_run_are_refused(batch, tmp_path):
 
 def test_the_shipped_finished_parts_give_the_transfer(batch):
     from piecs_bayes.io import read_finish_files
-    from piecs_bayes.jobs import feedback_from_values
+    from piecs_bayes.jobs import FeedbackSettings, feedback_from_values
 
     study, res = batch
     files = sorted((BATCH / "finish").glob("finish_*.csv"))
@@ -238,7 +238,7 @@ def test_the_shipped_finished_parts_give_the_transfer(batch):
         {k: f.values for k, f in res.features.items()},
         {k: f.u for k, f in res.features.items()},
         profile=study.profile, parts={k: f.parts for k, f in res.features.items()},
-        finish=fin, policies=("none", "ewma", "bayes"),
+        finish=fin, settings=FeedbackSettings(policies=("none", "ewma", "bayes")),
     )  # fmt: skip
     assert out.replayed_on == "finish"
     for f in out.features.values():
@@ -272,3 +272,18 @@ def test_simulated_finished_parts_read_back_as_their_truth(tmp_path):
         got = fin.for_feature("dia_24")[rec["part"]]
         assert got[0] == pytest.approx(rec["features"]["dia_24"]["measured_mm"], abs=1e-6)
         assert got[1] == pytest.approx(truth["u_cmm_mm"])
+
+
+def test_feedback_settings_defaults_and_refusal():
+    """`FeedbackSettings` holds what `feedback_from_values` took as keywords, with the
+    same defaults; an unknown policy is refused with the message it had."""
+    from piecs_bayes.feedback import POLICIES
+    from piecs_bayes.jobs import FeedbackSettings
+
+    s = FeedbackSettings()
+    assert (s.tool_changes, s.policies, s.characteristic, s.inspect_every, s.delay) == (
+        (), POLICIES, "mid", 1, 0
+    )  # fmt: skip
+    assert FeedbackSettings(policies=["none", "ewma"]).policies == ("none", "ewma")
+    with pytest.raises(InputError, match="unknown policy 'pid'; expected some of none, full"):
+        FeedbackSettings(policies=("none", "pid"))

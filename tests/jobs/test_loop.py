@@ -170,7 +170,7 @@ def test_the_shipped_gauge_data(tmp_path):
     lists the plan and the gauging program among its inputs."""
     from piecs_bayes.gcode import gauge_moves
     from piecs_bayes.io import read_plan_points
-    from piecs_bayes.jobs import run_job
+    from piecs_bayes.jobs import JobOptions, run_job
 
     gauge = DEMO / "gauge"
     study = load_study(gauge / "study.toml")
@@ -186,6 +186,6 @@ def test_the_shipped_gauge_data(tmp_path):
     plan = read_plan_points(study.probe_plan)
     moves = [m for m in gauge_moves(gauge / "gauging.ngc") if m.kind == "probe"]
     np.testing.assert_allclose([m.target for m in moves], plan.target, rtol=0, atol=1e-4)
-    res = run_job(study, bayes=False)
+    res = run_job(study, JobOptions(bayes=False))
     roles = {i.role: i.path.name for i in res.inputs}
     assert roles["probe plan"] == "plan.json" and roles["gauging program"] == "gauging.ngc"

@@ -28,7 +28,7 @@ from piecs_bayes.jobs import (
     plan_more,
     plan_study,
 )
-from piecs_bayes.simulate import simulate_parts
+from piecs_bayes.simulate import SimulatedProbing, simulate_parts
 from piecs_bayes.uncertainty import (
     DesignSettings,
     design_fractions,
@@ -83,8 +83,9 @@ def test_the_prediction_matches_1000_simulated_parts(study):
     plan = plan_study(study, points=6)
     fractions = {f.feature: np.array(f.fractions) for f in plan.features}
     sim = simulate_parts(
-        study.profile, {}, 1000, ball_radius=study.probe.ball_radius,
-        transform=study.transform, points=fractions, noise_sd=study.probe.repeatability, rng=5,
+        study.profile, {}, 1000, rng=5, probing=SimulatedProbing(
+            ball_radius=study.probe.ball_radius, transform=study.transform, points=fractions,
+            noise_sd=study.probe.repeatability),
     )  # fmt: skip
     opts = fit_options(study, "robust")
     bf = fit_profiles(

@@ -32,6 +32,7 @@ from piecs_bayes.jobs import (
 from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_TRANSFORM,
+    SimulatedProbing,
     demo_profile,
     process_deviations,
     simulate_parts,
@@ -61,7 +62,8 @@ def test_noise_free_points_of_a_lobing_probe_give_the_truth_once_calibrated():
     centre moved 20 um; r(theta) has a slope of up to 5 um/rad, and the 68-degree
     arc's centre amplifies its residuals' misfit)."""
     sim = simulate_parts(
-        PROFILE, TRUTH, 1, ball_radius=1.0, transform=DEMO_TRANSFORM, points=8, noise_sd=0.0,
+        PROFILE, TRUTH, 1, probing=SimulatedProbing(
+            ball_radius=1.0, transform=DEMO_TRANSFORM, points=8, noise_sd=0.0),
         probe=LOBING,
     )  # fmt: skip
     good = _fit(calibrated_points(PROFILE, sim["feature"], sim["points"], DEMO_TRANSFORM, LOBING),
@@ -83,19 +85,21 @@ def test_the_budget_line_is_the_calibrations_radius_uncertainty_at_the_approach(
     """All points of dia_24 are approached along -X (180 degrees): the calibration's
     share of its offset's variance is u(r(180 deg))^2 exactly (the radius moves every
     residual alike: the offset follows one for one, the rotation not at all)."""
-    from piecs_bayes.uncertainty import linearised_toolpath
+    from piecs_bayes.uncertainty import LinearisedOptions, linearised_toolpath
 
     sim = simulate_parts(
-        PROFILE, TRUTH, 1, ball_radius=1.0, transform=DEMO_TRANSFORM, points=FEW, noise_sd=SIGMA,
+        PROFILE, TRUTH, 1, probing=SimulatedProbing(
+            ball_radius=1.0, transform=DEMO_TRANSFORM, points=FEW, noise_sd=SIGMA),
         probe=LOBING, rng=4,
     )  # fmt: skip
     pts = calibrated_points(PROFILE, sim["feature"], sim["points"], DEMO_TRANSFORM, LOBING)
     radius = RadiusComponents.from_calibration(LOBING)
     assert radius.names == tuple(f"probe_cal_{j}" for j in range(1, 6))
     u = linearised_toolpath(
-        PROFILE, sim["feature"], pts, _fit(pts, sim, LOBING.r0), ball_radius=LOBING.r0,
-        sigma=SIGMA, transform=DEMO_TRANSFORM, source_sd={"x_centre": 0.001, **radius.source_sd},
-        radius=radius,
+        PROFILE, sim["feature"], pts, _fit(pts, sim, LOBING.r0), sigma=SIGMA,
+        options=LinearisedOptions(
+            ball_radius=LOBING.r0, transform=DEMO_TRANSFORM,
+            source_sd={"x_centre": 0.001, **radius.source_sd}, radius=radius),
     )  # fmt: skip
     assert set(u.deviation_budget) == {"repeatability", "x_centre", CALIBRATION_SOURCE, "total"}
     i = [f.id for f in PROFILE.features].index("dia_24") * 2  # lines before it: 2 params each
@@ -218,7 +222,7 @@ def test_a_calibration_at_another_feed_or_too_old_is_a_warning_in_the_report(cal
     from dataclasses import replace
 
     from piecs_bayes.export import report_html
-    from piecs_bayes.jobs import calibration_warnings, run_job
+    from piecs_bayes.jobs import JobOptions, calibration_warnings, run_job
 
     study = load_study(_edit(calibrated_study, "feed = 200.0", "feed = 400.0"))
     day = dt.date(2026, 12, 2)
@@ -229,7 +233,7 @@ def test_a_calibration_at_another_feed_or_too_old_is_a_warning_in_the_report(cal
     assert "is 2 days old (made 2026-11-30)" in msg
     assert calibration_warnings(replace(old, calibration_max_age_days=30.0), today=day) == []
     with pytest.warns(UserWarning, match="probing feed of 200 mm/min"):
-        res = run_job(study, bayes=False)
+        res = run_job(study, JobOptions(bayes=False))
     assert any("probing feed" in w for w in res.warnings)
     assert {i.role: i.path.name for i in res.inputs}["probe calibration"] == "probe_cal.json"
     html = report_html(res)

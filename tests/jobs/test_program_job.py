@@ -18,6 +18,7 @@ from piecs_bayes.export import g10_fanuc, write_compensation_outputs
 from piecs_bayes.gcode import parse_gcode, read_gcode
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import (
+    JobOptions,
     adjust_study_program,
     compensate_study,
     fit_study,
@@ -176,8 +177,9 @@ def test_adjusted_program_starts_with_a_block_that_traces_its_run(demo):
 
 def test_the_job_dates_the_program_with_its_run(tmp_path):
     res = run_job(
-        DEMO / "study.toml", bayes=False, uncertainty=False, capability=False, progress=False
-    )
+        DEMO / "study.toml", JobOptions(bayes=False, uncertainty=False, capability=False),
+        progress=False,
+    )  # fmt: skip
     assert res.created and f"(date {res.created})" in res.program.text.splitlines()
     assert f"sha256 {_sha(DEMO / 'study.toml')}" in res.program.text
 

@@ -15,7 +15,7 @@ import pytest
 
 from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.export import plan_program
-from piecs_bayes.gcode import gauging_program
+from piecs_bayes.gcode import GaugingOptions, gauging_program
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import plan_study, study_from_program
 from piecs_bayes.simulate import read_truth, simulate_gauge
@@ -198,9 +198,10 @@ def test_an_inch_program_writes_inches(cases):
     study, truth = cases["demo"]
     plan = plan_study(study, points=3)
     texts = {
-        units: gauging_program(plan.home, plan.path, plan.points, controller="linuxcnc",
-                               units=units, x_mode="diameter", tool=9, feed_mm_min=200.0,
-                               header=[units], decimals=10)
+        units: gauging_program(plan.home, plan.path, plan.points, header=[units],
+                               options=GaugingOptions(controller="linuxcnc", units=units,
+                                                      x_mode="diameter", tool=9,
+                                                      feed_mm_min=200.0, decimals=10))
         for units in ("in", "mm")
     }  # fmt: skip
     assert "G20" in texts["in"]

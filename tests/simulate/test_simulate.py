@@ -13,7 +13,13 @@ from golden import Deterministic, compare_text_file
 from piecs_bayes.cli import main
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import load_probe_data
-from piecs_bayes.simulate import BATCH_WEAR_PER_PART, DEMO_POINTS, batch_part_errors, write_batch
+from piecs_bayes.simulate import (
+    BATCH_WEAR_PER_PART,
+    DEMO_POINTS,
+    SimulatedProbing,
+    batch_part_errors,
+    write_batch,
+)
 
 BATCH = Path(__file__).resolve().parents[2] / "data" / "batch"
 
@@ -98,3 +104,14 @@ def test_cli_refuses_too_few_points(tmp_path, capsys, points):
     assert rc == 2
     assert "points" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+def test_simulated_probing_defaults_and_refusal():
+    """`SimulatedProbing` holds what `simulate_parts` took as keywords, with the same
+    defaults; a negative noise is refused."""
+    from piecs_bayes.geometry import MachineTransform
+
+    p = SimulatedProbing(ball_radius=1.0)
+    assert (p.transform, p.points, p.noise_sd, p.margin) == (MachineTransform(), 8, 0.001, 0.1)
+    with pytest.raises(ValueError, match="noise_sd must be a number >= 0, got -0.001"):
+        SimulatedProbing(ball_radius=1.0, noise_sd=-0.001)

@@ -16,6 +16,7 @@ from piecs_bayes.simulate import (
     simulate_probe,
 )
 from piecs_bayes.uncertainty import (
+    LinearisedOptions,
     linearised_toolpath,
 )
 
@@ -108,11 +109,14 @@ def test_a_scale_dominated_study_has_wider_bounds_in_the_expected_ratio():
         FULL, TRUTH_ALL, ball_radius=1.0, points=DEMO_POINTS, noise_sd=0.0015, rng=5
     )
     fit = fit_profile(FULL, sim["feature"], sim["points"], ball_radius=1.0, sigma=0.0015)
-    kw = dict(ball_radius=1.0, sigma=0.0015)
-    noise = linearised_toolpath(FULL, sim["feature"], sim["points"], fit.deviations, **kw)
+    noise = linearised_toolpath(
+        FULL, sim["feature"], sim["points"], fit.deviations, sigma=0.0015,
+        options=LinearisedOptions(ball_radius=1.0),
+    )  # fmt: skip
     scale = linearised_toolpath(
-        FULL, sim["feature"], sim["points"], fit.deviations, source_sd={"scale_z": 50e-6}, **kw
-    )
+        FULL, sim["feature"], sim["points"], fit.deviations, sigma=0.0015,
+        options=LinearisedOptions(ball_radius=1.0, source_sd={"scale_z": 50e-6}),
+    )  # fmt: skip
     # a face: its ball centres (at z ~ -60 + rb) are scaled, so its offset moves by z_c * s
     z_c = sim["points"][sim["feature"] == "shoulder", 1].mean()
     u0 = np.sqrt(noise.deviation_cov["shoulder"][0, 0])
@@ -145,8 +149,8 @@ def test_all_points_with_an_inlier_mask_equal_the_inliers_alone():
           int(np.flatnonzero(sim["feature"] == "fillet")[2])]] = False  # fmt: skip
     fit = fit_profile(FULL, sim["feature"][keep], sim["points"][keep], ball_radius=1.0,
                       sigma=0.0015)  # fmt: skip
-    kw = dict(ball_radius=1.0, sigma=0.0015, dof=30.0, source_sd={"x_centre": 0.001},
-              band_sims=2**12)  # fmt: skip
+    opts = LinearisedOptions(ball_radius=1.0, source_sd={"x_centre": 0.001}, band_sims=2**12)
+    kw = dict(sigma=0.0015, dof=30.0, options=opts)
     a = linearised_toolpath(FULL, sim["feature"][keep], sim["points"][keep], fit.deviations, **kw)
     b = linearised_toolpath(FULL, sim["feature"], sim["points"], fit.deviations, inlier=keep, **kw)
     np.testing.assert_allclose(b.vertex_cov, a.vertex_cov, rtol=1e-9, atol=1e-18)
@@ -156,3 +160,17 @@ def test_all_points_with_an_inlier_mask_equal_the_inliers_alone():
     for fid in a.deviation_cov:
         np.testing.assert_allclose(b.deviation_cov[fid], a.deviation_cov[fid], rtol=1e-9,
                                    atol=1e-18)  # fmt: skip
+
+
+def test_linearised_options_defaults_and_refusal():
+    """`LinearisedOptions` holds what `linearised_toolpath` took as keywords, with the
+    same defaults; an unknown source is refused with the message it had."""
+    from piecs_bayes.errors import InputError
+    from piecs_bayes.geometry import MachineTransform
+
+    o = LinearisedOptions(ball_radius=1.0)
+    assert (o.transform, o.source_sd, o.radius, o.loss, o.gain, o.grid, o.p, o.band_sims) == (
+        MachineTransform(), None, None, "linear", 1.0, None, 0.95, 100_000
+    )  # fmt: skip
+    with pytest.raises(InputError, match="unknown uncertainty source 'spindle'; expected one of"):
+        LinearisedOptions(ball_radius=1.0, source_sd={"spindle": 0.001})

@@ -13,7 +13,7 @@ import json
 import math
 from pathlib import Path
 
-from ...gcode import GAUGING_NAMES, gauging_program
+from ...gcode import GAUGING_NAMES, GaugingOptions, gauging_program
 from ...io import write_text_atomic
 
 _MM_PER = {"mm": 1.0, "in": 25.4}
@@ -45,13 +45,14 @@ def _header(plan) -> list[str]:
 def plan_program(plan) -> str:
     """The gauging program text of the plan, for its controller."""
     study, s = plan.study, plan.settings
-    return gauging_program(
-        plan.home, plan.path, plan.points, controller=s.controller, units=study.units,
+    options = GaugingOptions(
+        controller=s.controller, units=study.units,
         x_mode=s.x_mode, tool=study.probe.tool, feed_mm_min=study.probe.feed,
-        header=_header(plan), probe_file=s.probe_file, log_file=s.log_file,
+        probe_file=s.probe_file, log_file=s.log_file,
         probe_on=s.probe_on,
         probe_off=s.probe_off, program_number=s.program_number,
     )  # fmt: skip
+    return gauging_program(plan.home, plan.path, plan.points, options=options, header=_header(plan))
 
 
 def plan_json(plan) -> str:

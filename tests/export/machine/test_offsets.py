@@ -2,7 +2,7 @@
 
 import pytest
 
-from piecs_bayes.compensate import OffsetSettings, ToolOffsets, tool_offset_update
+from piecs_bayes.compensate import OffsetSettings, ToolOffsets, WearOffset, tool_offset_update
 from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.export import (
     g10_fanuc,
@@ -24,7 +24,7 @@ _ARGS = dict(
 
 
 def _update(**kw):
-    return tool_offset_update(3, **{**_ARGS, **kw})
+    return tool_offset_update(WearOffset(3), **{**_ARGS, **kw})
 
 
 def test_gain_null_band_and_uncertainty():
@@ -49,12 +49,11 @@ def test_linuxcnc_g10_exact_text_diameter_mode():
 
 def test_linuxcnc_g10_exact_text_radius_mode_with_nose_radius():
     u = tool_offset_update(
-        12,
+        WearOffset(12, x_mode="radius"),
         x_error=-0.004,
         u_x=0.0005,
         nose_radius_error=0.006,
         u_r=0.001,
-        x_mode="radius",
         settings=OffsetSettings(decimals=3),
     )
     text = g10_linuxcnc(u, current=ToolOffsets(x=-1.0, r=0.4))
@@ -77,7 +76,8 @@ def test_fanuc_incremental_and_absolute():
 def test_wear_offset_number_where_each_controller_needs_it():
     # T0211: tool 2 (turret station, LinuxCNC tool-table entry), wear offset 11
     u = tool_offset_update(
-        2, offset=11, source="the T word T0211 on line 4 of finish.ngc (lines 8-14)", **_ARGS
+        WearOffset(2, offset=11, source="the T word T0211 on line 4 of finish.ngc (lines 8-14)"),
+        **_ARGS,
     )
     fanuc = g10_fanuc(u).splitlines()
     assert fanuc[0] == (
@@ -95,11 +95,11 @@ def test_wear_offset_number_where_each_controller_needs_it():
     old = offsets_to_json(_update()).replace('  "offset": 3,\n', "")
     assert '"offset"' not in old and offsets_from_json(old).offset == 3
     with pytest.raises(InputError, match="offset must be an integer >= 1, got 0"):
-        tool_offset_update(2, x_error=0.01, offset=0)
+        tool_offset_update(WearOffset(2, offset=0), x_error=0.01)
 
 
 def test_everything_inside_the_null_band_changes_nothing():
-    u = tool_offset_update(5, x_error=0.0015, z_error=-0.002, settings=ST)
+    u = tool_offset_update(WearOffset(5), x_error=0.0015, z_error=-0.002, settings=ST)
     assert not u.any_update and {u.x.status, u.z.status} == {"null band"}
     text = g10_linuxcnc(u, current=ToolOffsets())
     assert "G10" not in text and text.startswith("(piecs-bayes LinuxCNC wear update T5")
@@ -121,7 +121,9 @@ def test_upper_limit_blocks_the_whole_update():
 
 def test_significance_factor():
     st = OffsetSettings(null_band=0.001, k_significance=2.0)
-    u = tool_offset_update(1, x_error=0.003, u_x=0.002, z_error=0.003, u_z=0.001, settings=st)
+    u = tool_offset_update(
+        WearOffset(1), x_error=0.003, u_x=0.002, z_error=0.003, u_z=0.001, settings=st
+    )
     assert u.x.status == "not significant" and u.z.status == "update"
 
 
@@ -158,8 +160,18 @@ def test_settings_validation(kw, message):
 
 def test_bad_update_arguments():
     with pytest.raises(InputError, match="tool must be an integer >= 1"):
-        tool_offset_update(0, x_error=0.01)
+        tool_offset_update(WearOffset(0), x_error=0.01)
     with pytest.raises(InputError, match="no error given"):
-        tool_offset_update(2)
+        tool_offset_update(WearOffset(2))
     with pytest.raises(InputError, match="x_mode must be"):
-        tool_offset_update(2, x_error=0.01, x_mode="diametre")
+        tool_offset_update(WearOffset(2, x_mode="diametre"), x_error=0.01)
+
+
+def test_wear_offset_defaults_and_refusal():
+    """`WearOffset` holds what `tool_offset_update` took as `tool`, `offset`, `x_mode` and
+    `source`, with the same defaults (offset: the tool); a bad value is refused."""
+    assert WearOffset(3) == WearOffset(3, offset=3, x_mode="diameter", source="")
+    u = tool_offset_update(WearOffset(3), x_error=0.01)
+    assert (u.tool, u.offset, u.x_mode, u.source) == (3, 3, "diameter", "")
+    with pytest.raises(InputError, match="tool must be an integer >= 1, got True"):
+        WearOffset(True)

@@ -22,7 +22,7 @@ from scipy import stats
 from piecs_bayes.cli import main
 from piecs_bayes.export import report_files, report_html, summary_html, summary_rows
 from piecs_bayes.export.report._sections import SECTIONS
-from piecs_bayes.jobs import JobResults, run_job
+from piecs_bayes.jobs import JobOptions, JobResults, run_job
 
 DATA = Path(__file__).resolve().parents[3] / "data"
 DEMO = DATA / "demo" / "study.toml"
@@ -94,7 +94,7 @@ def demo_results():
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        return run_job(DEMO, nsteps=400, seed=1, nose_radius=0.4)
+        return run_job(DEMO, JobOptions(nsteps=400, seed=1, nose_radius=0.4))
 
 
 @pytest.fixture(scope="module")
@@ -212,7 +212,7 @@ def test_sections_say_why_a_step_is_unavailable(tmp_path):
         "N90 G1 X30.000 Z-57.000\n", "N85 G1 X31.000 Z-50.000\nN90 G1 X30.000 Z-57.000\n"
     )
     (tmp_path / "finish.ngc").write_text(prog)
-    res = run_job(tmp_path / "study.toml", bayes=False, errspec=False, progress=False)
+    res = run_job(tmp_path / "study.toml", JobOptions(bayes=False, errspec=False), progress=False)
     assert res.bayes is None and "bayes" in res.skipped
     assert "lies on no profile feature" in res.unavailable["program"]
     assert res.errspec is None and "errspec" in res.skipped
@@ -235,7 +235,8 @@ def test_a_diameter_tolerance_is_reported_as_drawn(tmp_path):
     shutil.copy(DATA / "demo" / "probe_part01.csv", tmp_path / "probe_part01.csv")
     shutil.copy(DATA / "demo" / "finish.ngc", tmp_path / "finish.ngc")
     res = run_job(
-        tmp_path / "study.toml", bayes=False, uncertainty=False, program=False, errspec=False,
+        tmp_path / "study.toml",
+        JobOptions(bayes=False, uncertainty=False, program=False, errspec=False),
         progress=False,
     )  # fmt: skip
     d = res.decisions["dia_24"]
@@ -253,8 +254,7 @@ def test_capability_section_with_several_parts():
     files = sorted((DATA / "batch").glob("part*.csv"))[:8]
     res = run_job(
         BATCH,
-        bayes=False,
-        program=False,
+        JobOptions(bayes=False, program=False),
         capability_files=files,
         progress=False,
     )
@@ -270,12 +270,14 @@ def test_progress_lines_go_to_a_callable():
     lines: list[str] = []
     run_job(
         DEMO,
-        bayes=False,
-        uncertainty=False,
-        program=False,
-        errspec=False,
-        decisions=False,
-        capability=False,
+        JobOptions(
+            bayes=False,
+            uncertainty=False,
+            program=False,
+            errspec=False,
+            decisions=False,
+            capability=False,
+        ),
         progress=lines.append,
     )
     assert lines[0].startswith("read ") and lines[-1].startswith("main job finished in ")
