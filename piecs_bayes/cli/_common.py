@@ -98,7 +98,7 @@ def add_apply(p: argparse.ArgumentParser, *, alternatives: bool = True) -> None:
 def finish(console: Console, out: Path, written: list, machine=None) -> None:
     """The closing lines: every file written (alternatives marked), what to load on
     the machine, and "done" last."""
-    from ..export import ALTERNATIVE
+    from ..export.machine import ALTERNATIVE
 
     console.say(f"wrote {len(written)} file(s) in {out}:")
     for p in written:

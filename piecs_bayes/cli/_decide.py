@@ -86,7 +86,7 @@ def register(subparsers) -> None:
 
 
 def cmd_decide(args, console) -> int:
-    from ..export import decisions_csv, decisions_json, decisions_text
+    from ..export.tables import decisions_csv, decisions_json, decisions_text
     from ..jobs import decide_study
 
     study, probe, fit = fit_from_args(args, console)
@@ -104,7 +104,7 @@ def cmd_decide(args, console) -> int:
 
 def cmd_capability(args, console) -> int:
     from ..errors import InputError
-    from ..export import capability_csvs, capability_json, capability_text
+    from ..export.tables import capability_csvs, capability_json, capability_text
     from ..io import load_study
     from ..jobs import capability_study, load_probe_data
 

@@ -76,7 +76,8 @@ def _finish_files(patterns) -> list[Path] | None:
 
 
 def cmd_feedback(args, console) -> int:
-    from ..export import feedback_text, write_feedback
+    from ..export.report import write_feedback
+    from ..export.tables import feedback_text
     from ..io import load_study
     from ..jobs import feedback_study, load_probe_data
 

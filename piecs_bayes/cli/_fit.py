@@ -152,7 +152,7 @@ def cmd_fit(args, console) -> int:
 
 
 def cmd_compensate(args, console) -> int:
-    from ..export import path_csv
+    from ..export.tables import path_csv
     from ..jobs import apply_route, compensate_study
 
     study, probe, fit = fit_from_args(args, console)
@@ -180,7 +180,7 @@ def _machine_files(args, study, fit, path, out, route, why, console):
     """The route's machine files (and the alternatives, on request); the adjusted
     program only when the route or the alternatives need it."""
     from ..errors import PiecsError
-    from ..export import write_machine_files
+    from ..export.machine import write_machine_files
     from ..jobs import APPLY_ROUTES, adjust_study_program, machine_data
 
     adj, unavailable = None, {}

@@ -24,7 +24,7 @@ def bayes_from_args(args, study, probe, fit, console):
 
 
 def write_bayes(out, study, bayes, console, written):
-    from ..export import posterior_csv
+    from ..export.tables import posterior_csv
 
     console.step("writing the posterior: posterior.csv (summary) and posterior.nc (draws)")
     write(out, "posterior.csv", posterior_csv(bayes), study, console, written)
@@ -37,7 +37,7 @@ def write_bayes(out, study, bayes, console, written):
 
 
 def write_fit(out, study, fit, console, written):
-    from ..export import fit_csv, fit_json, residuals_csv
+    from ..export.tables import fit_csv, fit_json, residuals_csv
 
     write(out, "fit.json", fit_json(fit, study=study), study, console, written)
     write(out, "fit.csv", fit_csv(fit), study, console, written)
@@ -73,7 +73,7 @@ def write_bounds(out, study, probe, fit, bayes, gain, console, written):
 
 
 def write_unc(out, study, unc, console, written):
-    from ..export import band_csv, bounds_csv, bounds_json, budget_csv
+    from ..export.tables import band_csv, bounds_csv, bounds_json, budget_csv
 
     for key, tpu in unc.items():
         if tpu is None:

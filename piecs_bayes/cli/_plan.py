@@ -52,7 +52,7 @@ def register(subparsers) -> None:
 
 
 def cmd_plan(args, console) -> int:
-    from ..export import write_plan
+    from ..export.machine import write_plan
     from ..io import load_study, read_more_points
     from ..jobs import plan_more, plan_study
 

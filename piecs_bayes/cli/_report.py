@@ -110,7 +110,7 @@ def run_job_from_args(args, console):
 
 def write_report(res, out: Path, console, written: list) -> None:
     """Write ``report.html`` and ``report.pdf`` of `res` into `out`."""
-    from ..export import report_files
+    from ..export.report import report_files
     from ..io import write_bytes_atomic, write_text_atomic
 
     console.step("drawing the report figures, then writing report.html and report.pdf")
@@ -139,7 +139,7 @@ def cmd_report(args, console) -> int:
 def cmd_demo(args, console) -> int:
     """The main job end to end: every results table, the machine files of one route
     and the report."""
-    from ..export import decisions_csv, decisions_json, decisions_text, path_csv
+    from ..export.tables import decisions_csv, decisions_json, decisions_text, path_csv
 
     console.say(f"piecs-bayes demo on {args.study}")
     res = run_job_from_args(args, console)
@@ -172,7 +172,7 @@ def cmd_demo(args, console) -> int:
 
 def _machine_files(args, res, out: Path, console):
     """The chosen route's machine files (and the alternatives, on request)."""
-    from ..export import write_machine_files
+    from ..export.machine import write_machine_files
     from ..jobs import APPLY_ROUTES, machine_data
 
     unavailable, data = {}, None

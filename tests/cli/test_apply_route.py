@@ -14,7 +14,7 @@ import pytest
 from piecs_bayes.cli import main
 from piecs_bayes.cli._common import out_dir, slug
 from piecs_bayes.errors import InputError
-from piecs_bayes.export import ALTERNATIVE, parse_linuxcnc_comp, read_errspec
+from piecs_bayes.export.machine import ALTERNATIVE, parse_linuxcnc_comp, read_errspec
 from piecs_bayes.io import load_study
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -534,7 +534,7 @@ def test_a_closed_reader_is_a_quiet_stop(tmp_path):
 def gauge_copy(tmp_path_factory):
     """The demo in the work frame with a 5-point plan and its LinuxCNC probe file (the
     plan's nominal ball centres, 6 decimals, as PROBEOPEN writes them)."""
-    from piecs_bayes.export import plan_json
+    from piecs_bayes.export.machine import plan_json
     from piecs_bayes.io import load_study
     from piecs_bayes.jobs import plan_study
 

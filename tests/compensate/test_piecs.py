@@ -121,7 +121,7 @@ def test_adjusted_path_dataframe_is_toolpath_csv():
 
     import pandas as pd
 
-    from piecs_bayes.export import path_csv
+    from piecs_bayes.export.tables import path_csv
 
     path = adjusted_path(PROFILE, TRUTH)
     df = path.to_dataframe()

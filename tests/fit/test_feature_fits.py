@@ -126,7 +126,7 @@ def test_profile_fit_dataframes_are_its_csvs():
 
     import pandas as pd
 
-    from piecs_bayes.export import fit_csv, residuals_csv
+    from piecs_bayes.export.tables import fit_csv, residuals_csv
 
     sim = simulate_probe(PROFILE, TRUTH, ball_radius=1.0, points=DEMO_POINTS, noise_sd=SIGMA, rng=4)
     fit = fit_profile(

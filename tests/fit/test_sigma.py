@@ -13,7 +13,7 @@ from scipy import stats
 
 from piecs_bayes.decide import conformance, decide
 from piecs_bayes.errors import InputError
-from piecs_bayes.export import fit_csv, fit_json
+from piecs_bayes.export.tables import fit_csv, fit_json
 from piecs_bayes.fit import (
     ScaledInvChi2,
     coverage_factor,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.export import plan_json, plan_program
+from piecs_bayes.export.machine import plan_json, plan_program
 from piecs_bayes.gcode import (
     GaugingOptions,
     dprnt_value,

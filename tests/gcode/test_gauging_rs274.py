@@ -18,7 +18,7 @@ import pytest
 from helpers import gauge_ready
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.export import plan_json, plan_program
+from piecs_bayes.export.machine import plan_json, plan_program
 from piecs_bayes.gcode import rs274_path, run_rs274
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import plan_study, study_from_program

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.export import plan_json
+from piecs_bayes.export.machine import plan_json
 from piecs_bayes.io import load_study, read_control_probe, read_plan_points
 from piecs_bayes.jobs import fit_study, load_probe_data, plan_study
 from piecs_bayes.simulate import DEMO_ERRORS, process_deviations, simulate_probe

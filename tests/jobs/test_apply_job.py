@@ -62,7 +62,7 @@ def test_run_job_records_the_route_and_finishes_without_done(study):
 
 
 def test_route_file_names_are_the_files_written(study, tmp_path):
-    from piecs_bayes.export import route_file_names, write_machine_files
+    from piecs_bayes.export.machine import route_file_names, write_machine_files
     from piecs_bayes.jobs import machine_data
 
     res = run_job(study, JobOptions(bayes=False, uncertainty=False, capability=False))

@@ -11,10 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import piecs_bayes.export as E
 import piecs_bayes.jobs as D
 from piecs_bayes.capability import CapabilityOptions, d2_constant
 from piecs_bayes.errors import InputError
+from piecs_bayes.export.figures import capability_chart_figure
+from piecs_bayes.export.tables import capability_csvs, capability_json, capability_text
 from piecs_bayes.geometry import Profile, drawn_limits, drawn_scale, make_feature, profile_side
 from piecs_bayes.io import load_study
 
@@ -211,7 +212,7 @@ def test_the_files_say_the_coordinate(run):
 
     _, _, cs, _ = run
     dia = cs["dia_24"]
-    doc = json.loads(E.capability_json(cs))
+    doc = json.loads(capability_json(cs))
     fj = {x["feature"]: x for x in doc["features"]}
     assert fj["dia_24"]["coordinate"] == "diameter" and fj["dia_24"]["scale"] == 2.0
     assert (fj["dia_24"]["lsl_drawn_mm"], fj["dia_24"]["usl_drawn_mm"]) == (-0.02, 0.02)
@@ -221,7 +222,7 @@ def test_the_files_say_the_coordinate(run):
     assert v0["value_drawn_mm"] == pytest.approx(2 * v0["value_mm"], rel=1e-15)
     assert fj["dia_24"]["stability"]["center_drawn_mm"] == pytest.approx(dia.capability.mean)
     assert fj["dia_24"]["predicted"]["mean_after_drawn_mm"] == pytest.approx(0.0, abs=1e-12)
-    csvs = E.capability_csvs(cs)
+    csvs = capability_csvs(cs)
     summary = pd.read_csv(io.StringIO(csvs["capability_summary.csv"]))
     head = ["feature", "at", "coordinate", "n", "lsl_drawn_mm", "usl_drawn_mm"]
     assert list(summary.columns[:6]) == head
@@ -232,7 +233,7 @@ def test_the_files_say_the_coordinate(run):
     assert list(parts.columns[:4]) == ["part", "feature", "coordinate", "value_drawn_mm"]
     indices = pd.read_csv(io.StringIO(csvs["capability.csv"]))
     assert list(indices.columns[:3]) == ["feature", "coordinate", "index"]
-    text = E.capability_text(cs)
+    text = capability_text(cs)
     line = next(ln for ln in text.splitlines() if ln.startswith("dia_24    diameter"))
     assert "[-20,+20]" in line and f"{dia.capability.mean * 1e3:+.2f}" in line
     assert "Values as drawn (um): on the diameter for diameters" in text
@@ -240,7 +241,7 @@ def test_the_files_say_the_coordinate(run):
 
 def test_the_chart_is_labelled_as_drawn(run):
     _, _, cs, _ = run
-    fig = E.capability_chart_figure(cs)
+    fig = capability_chart_figure(cs)
     labels = {ax.get_title().split(" ")[0]: ax.get_ylabel() for ax in fig.axes if ax.get_visible()}
     assert labels["dia_24"] == "deviation of Ø (µm)"
     assert labels["face_end"] == "deviation of Z (µm)"

@@ -15,17 +15,25 @@ from types import MappingProxyType
 import numpy as np
 import pytest
 
-import piecs_bayes.export as E
 import piecs_bayes.jobs as D
 import piecs_bayes.uncertainty as U
 from piecs_bayes.capability import CapabilityOptions
 from piecs_bayes.cli import main
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.export import (
+from piecs_bayes.export.machine import (
     linuxcnc_comp_text,
     offsets_from_json,
     read_errspec,
     read_linuxcnc_comp,
+    write_compensation_outputs,
+)
+from piecs_bayes.export.tables import (
+    capability_csvs,
+    capability_json,
+    capability_text,
+    decisions_csv,
+    decisions_json,
+    decisions_text,
 )
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import fit_study
@@ -167,15 +175,15 @@ def test_decision_table_outputs(demo):
     study, fit = demo
     table = D.decide_study(study, fit)
     assert [d.feature for d in table.decisions] == list(study.profile.ids)
-    doc = json.loads(E.decisions_json(table))
+    doc = json.loads(decisions_json(table))
     assert doc["schema"] == "piecs_bayes.decisions" and doc["characteristic"] == "worst"
     assert doc["settings"]["max_correction"] == study.compensation.max_correction
     row = {f["feature"]: f for f in doc["features"]}["dia_24"]
     assert row["verdict"] == "compensate" and row["characteristic"]["at"] in ("start", "end")
     assert {a["name"] for a in row["actions"]} >= {"none", "full", "fraction", "grubbs", "bayes"}
-    rows = list(csv.DictReader(E.decisions_csv(table).splitlines()))
+    rows = list(csv.DictReader(decisions_csv(table).splitlines()))
     assert len(rows) == 7 and rows[1]["verdict"] == "compensate"
-    text = E.decisions_text(table)
+    text = decisions_text(table)
     assert "COMPENSATE" in text and "dia_24" in text
 
 
@@ -187,7 +195,7 @@ def test_decision_table_dataframe_is_its_csv(demo):
     study, fit = demo
     table = D.decide_study(study, fit)
     df = table.to_dataframe()
-    pd.testing.assert_frame_equal(df, pd.read_csv(io.StringIO(E.decisions_csv(table))))
+    pd.testing.assert_frame_equal(df, pd.read_csv(io.StringIO(decisions_csv(table))))
     assert list(df["feature"]) == list(study.profile.ids)
     assert df.set_index("feature").loc["dia_24", "verdict"] == table["dia_24"].verdict
     assert {"estimate_mm", "u_estimate_mm", "tolerance_lower_mm", "gain"} <= set(df.columns)
@@ -221,11 +229,11 @@ def test_a_diameter_tolerance_is_decided_as_drawn(tmp_path):
     assert row["coordinate"] == "diameter"
     assert (row["tolerance_drawn_lower_mm"], row["tolerance_drawn_upper_mm"]) == (-0.01, 0.01)
     assert row["deviation_drawn_mm"] == 2 * row["estimate_mm"]
-    doc = {f["feature"]: f for f in json.loads(E.decisions_json(table))["features"]}
+    doc = {f["feature"]: f for f in json.loads(decisions_json(table))["features"]}
     assert doc["dia_24"]["characteristic"]["coordinate"] == "diameter"
     assert doc["dia_24"]["characteristic"]["scale"] == 2.0
     assert doc["face_end"]["coordinate"] == "length" and doc["taper"]["coordinate"] == "normal"
-    line = next(x for x in E.decisions_text(table).splitlines() if x.startswith("dia_24 "))
+    line = next(x for x in decisions_text(table).splitlines() if x.startswith("dia_24 "))
     assert "diameter" in line and "[-10,+10]" in line
     # the same band on the radius is the same decision
     radius = load_study(
@@ -347,11 +355,11 @@ def test_capability_over_the_batch_finds_the_tool_change(batch):
     ]
     np.testing.assert_allclose(f.values, 2.0 * np.asarray(f.normal_values), rtol=1e-12)
     assert np.median(np.abs(z)) < 1.5 and np.max(np.abs(z)) < 5.0
-    doc = json.loads(E.capability_json(cs))
+    doc = json.loads(capability_json(cs))
     assert doc["schema"] == "piecs_bayes.capability" and doc["steps"][change]
     fj = {x["feature"]: x for x in doc["features"]}["dia_24"]
     assert fj["stability"]["step_before_part"] == change and len(fj["values"]) == 36
-    text = E.capability_text(cs)
+    text = capability_text(cs)
     assert f"STEP before {change}" in text
     assert len(cs.part_rows()) == 36 * 7 and len(cs.summary_rows()) == 7
 
@@ -362,7 +370,7 @@ def test_capability_dataframes_are_its_csvs(batch):
     import pandas as pd
 
     _, cs = batch
-    csvs = E.capability_csvs(cs)
+    csvs = capability_csvs(cs)
     for table, name in (
         ("summary", "capability_summary.csv"),
         ("indices", "capability.csv"),
@@ -420,7 +428,7 @@ def _independent_comp_check(text: str) -> list[tuple[float, float, float]]:
 
 def test_compensation_outputs_are_written_and_validated(demo, tmp_path):
     study, fit = demo
-    out = E.write_compensation_outputs(study, D.machine_data(study, fit), tmp_path)
+    out = write_compensation_outputs(study, D.machine_data(study, fit), tmp_path)
     names = {p.name for p in out.written}
     assert {"compensation.errspec.json", "compensation.x_dia_24.csv"} <= names
     assert {"linuxcnc_x.comp", "linuxcnc_z.comp", "linuxcnc_comp.ini"} <= names
@@ -473,7 +481,7 @@ def test_tool_offsets_with_current_values_nose_radius_and_block(demo, tmp_path):
     study, fit = demo
     cur = {"current_x": 0.1234, "current_z": -2.5, "current_r": 0.4, "tool": 2}
     s1 = replace(study, offsets=MappingProxyType(cur))
-    out = E.write_compensation_outputs(s1, D.machine_data(s1, fit, gain=0.5), tmp_path / "a")
+    out = write_compensation_outputs(s1, D.machine_data(s1, fit, gain=0.5), tmp_path / "a")
     g10 = (tmp_path / "a" / "tool_offsets_linuxcnc.ngc").read_text()
     assert "G10 L1 P2 X0.0862 Z-2.4893" in g10 and "G21 G7" in g10  # as the program's T0202
     off, rot = fit["dia_24"].values
@@ -493,7 +501,7 @@ def test_tool_offsets_with_current_values_nose_radius_and_block(demo, tmp_path):
     assert any("nose-radius change" in n for n in notes)
     # an error above the upper limit blocks the update: JSON only, no G10
     s3 = replace(study, offsets=MappingProxyType({"upper_limit": 0.03}))
-    out = E.write_compensation_outputs(s3, D.machine_data(s3, fit), tmp_path / "b")
+    out = write_compensation_outputs(s3, D.machine_data(s3, fit), tmp_path / "b")
     names = {p.name for p in out.written}
     assert "tool_offsets.json" in names and "tool_offsets_fanuc.ngc" not in names
     assert out.offsets.blocked and any("no G10 written" in n for n in out.notes)
@@ -557,7 +565,7 @@ def test_a_failed_part_fit_falls_back_or_is_left_out(monkeypatch):
     assert cs.parts == ("part01", "part02", "part04", "part05")
     assert any(n.startswith("part02: robust fit failed") for n in cs.notes)
     assert any(n.startswith("part03: left out") for n in cs.notes)
-    assert "notes:" in E.capability_text(cs)
+    assert "notes:" in capability_text(cs)
 
 
 def test_the_nose_radius_significance_uses_t_at_the_sigma_dof(demo):

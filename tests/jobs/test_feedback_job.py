@@ -102,7 +102,7 @@ def test_coverage_and_next_part(batch):
 
 
 def test_feedback_json_has_the_issue_keys(batch, tmp_path):
-    from piecs_bayes.export import feedback_csvs, feedback_json
+    from piecs_bayes.export.tables import feedback_csvs, feedback_json
 
     _, res = batch
     doc = json.loads(feedback_json(res))

@@ -54,7 +54,7 @@ def test_the_job_runs_the_loop_as_the_shop_does(sampled):
 
 
 def test_rows_say_which_comparison_they_are(sampled):
-    from piecs_bayes.export import feedback_text
+    from piecs_bayes.export.tables import feedback_text
 
     rows = {(r["feature"], r["policy"]): r["comparison"] for r in sampled.policy_rows()}
     assert rows["all", "ewma"].startswith("b: tuned on this run")
@@ -67,7 +67,7 @@ def test_rows_say_which_comparison_they_are(sampled):
 
 
 def test_the_report_shows_both_comparisons(sampled):
-    from piecs_bayes.export import feedback_report_html
+    from piecs_bayes.export.report import feedback_report_html
 
     page = feedback_report_html(sampled, png={"feedback_tracks": b"", "feedback_policies": b""})
     for label in ("ewma (a) (µm)", "ewma (b) (µm)", "dewma (a)", "fixed_gain (b)"):

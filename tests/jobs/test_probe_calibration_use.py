@@ -221,7 +221,7 @@ def test_a_calibration_at_another_feed_or_too_old_is_a_warning_in_the_report(cal
     import datetime as dt
     from dataclasses import replace
 
-    from piecs_bayes.export import report_html
+    from piecs_bayes.export.report import report_html
     from piecs_bayes.jobs import JobOptions, calibration_warnings, run_job
 
     study = load_study(_edit(calibrated_study, "feed = 200.0", "feed = 400.0"))

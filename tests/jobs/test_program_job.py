@@ -14,7 +14,7 @@ import pytest
 from piecs_bayes import __version__
 from piecs_bayes.cli import main
 from piecs_bayes.errors import InputError
-from piecs_bayes.export import g10_fanuc, write_compensation_outputs
+from piecs_bayes.export.machine import g10_fanuc, write_compensation_outputs
 from piecs_bayes.gcode import parse_gcode, read_gcode
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import (

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.export import plan_program
+from piecs_bayes.export.machine import plan_program
 from piecs_bayes.gcode import GaugingOptions, gauging_program
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import plan_study, study_from_program

@@ -38,7 +38,7 @@ def test_dataframes_are_the_bounds_band_and_budget_csvs():
 
     import pandas as pd
 
-    from piecs_bayes.export import band_csv, bounds_csv, budget_csv
+    from piecs_bayes.export.tables import band_csv, bounds_csv, budget_csv
 
     study = load_study(DEMO)
     tpu = toolpath_uncertainty(study, fit_study(study))["linearised"]

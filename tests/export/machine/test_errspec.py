@@ -8,7 +8,7 @@ import pytest
 
 from piecs_bayes.compensate import CompensationTable, ErrorSpec
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.export import (
+from piecs_bayes.export.machine import (
     errspec_texts,
     linuxcnc_comp_text,
     parse_linuxcnc_comp,

@@ -4,12 +4,7 @@ import pytest
 
 from piecs_bayes.compensate import OffsetSettings, ToolOffsets, WearOffset, tool_offset_update
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.export import (
-    g10_fanuc,
-    g10_linuxcnc,
-    offsets_from_json,
-    offsets_to_json,
-)
+from piecs_bayes.export.machine import g10_fanuc, g10_linuxcnc, offsets_from_json, offsets_to_json
 
 ST = OffsetSettings(null_band=0.002, feedback_gain=0.8, upper_limit=0.1)
 _ARGS = dict(

@@ -20,7 +20,7 @@ from pypdf import PdfReader
 from scipy import stats
 
 from piecs_bayes.cli import main
-from piecs_bayes.export import report_files, report_html, summary_html, summary_rows
+from piecs_bayes.export.report import report_files, report_html, summary_html, summary_rows
 from piecs_bayes.export.report._sections import SECTIONS
 from piecs_bayes.jobs import JobOptions, JobResults, run_job
 

@@ -17,7 +17,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import piecs_bayes.export as E
+from piecs_bayes.export.tables import (
+    band_csv,
+    bounds_csv,
+    budget_csv,
+    fit_csv,
+    path_csv,
+    posterior_csv,
+    residuals_csv,
+    to_csv,
+)
 from piecs_bayes.fit import SOURCE_UNITS
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import bayes_study, compensate_study, fit_study, toolpath_uncertainty
@@ -70,7 +79,7 @@ def _read(text: str) -> pd.DataFrame:
 
 def test_fit_csv_has_a_unit_per_parameter(demo):
     study, fit = demo[:2]
-    head, rows = _rows(E.fit_csv(fit))
+    head, rows = _rows(fit_csv(fit))
     assert head == FIT
     units = {(r["type"], r["parameter"]): r["unit"] for r in rows}
     assert units[("line", "offset")] == "mm" and units[("line", "rotation")] == "rad"
@@ -80,9 +89,9 @@ def test_fit_csv_has_a_unit_per_parameter(demo):
 
 def test_residuals_and_path_csv_state_x_as_a_radius(demo):
     study, fit, path = demo[:3]
-    head, rows = _rows(E.residuals_csv(fit))
+    head, rows = _rows(residuals_csv(fit))
     assert head == RESIDUALS and len(rows) == sum(f.n for f in fit)
-    head, rows = _rows(E.path_csv(path))
+    head, rows = _rows(path_csv(path))
     assert head == PATH and len(rows) == len(study.profile) + 1
     first = rows[1]  # face_end|dia_24: the corner at the nominal radius 12 (diameter 24)
     assert float(first["nominal_x_radius_mm"]) == pytest.approx(12.0)
@@ -90,11 +99,11 @@ def test_residuals_and_path_csv_state_x_as_a_radius(demo):
 
 def test_toolpath_csvs_have_units_in_their_headers(demo):
     study, tpu = demo[0], demo[3]
-    head, rows = _rows(E.bounds_csv(tpu))
+    head, rows = _rows(bounds_csv(tpu))
     assert head == BOUNDS and len(rows) == len(tpu.vertices)
-    head, rows = _rows(E.band_csv(tpu, study.profile))
+    head, rows = _rows(band_csv(tpu, study.profile))
     assert head == BAND and len(rows) == len(tpu.grid)
-    head, rows = _rows(E.budget_csv(tpu, study.profile))
+    head, rows = _rows(budget_csv(tpu, study.profile))
     assert head == BUDGET
     by_output: dict[str, list[dict]] = {}
     for r in rows:
@@ -115,7 +124,7 @@ def test_toolpath_csvs_have_units_in_their_headers(demo):
 
 def test_posterior_csv_has_a_unit_per_parameter(demo):
     bayes = demo[4]
-    head, rows = _rows(E.posterior_csv(bayes))
+    head, rows = _rows(posterior_csv(bayes))
     assert head == POSTERIOR and [r["parameter"] for r in rows] == list(bayes.names)
     units = {r["parameter"]: r["unit"] for r in rows}
     assert units["dia_24.offset"] == "mm" and units["dia_24.rotation"] == "rad"
@@ -125,7 +134,7 @@ def test_posterior_csv_has_a_unit_per_parameter(demo):
 
 
 def test_floats_keep_their_decimal_point():
-    text = E.to_csv([{"a": 46.0, "b": 3, "c": -0.0, "d": 1e-12, "e": None, "f": float("nan")}])
+    text = to_csv([{"a": 46.0, "b": 3, "c": -0.0, "d": 1e-12, "e": None, "f": float("nan")}])
     assert text.splitlines()[1] == "46.0,3,-0.0,1e-12,,nan"
     df = _read(text)
     assert str(df["a"].dtype) == "float64" and str(df["b"].dtype) == "int64"
