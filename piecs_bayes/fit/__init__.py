@@ -1,7 +1,6 @@
 """Fitting: general (robust) least squares on optimistix, feature models, Bayesian fits."""
 
 from .. import _config  # noqa: F401  (float64 before any JAX array)
-from ._batch import CHUNK_PARTS as CHUNK_PARTS
 from ._batch import BatchFit as BatchFit
 from ._batch import fit_profiles as fit_profiles
 from ._bayes_profile import BayesProfileFit as BayesProfileFit
@@ -23,6 +22,13 @@ from ._measurement import SOURCE_UNITS as SOURCE_UNITS
 from ._measurement import RadiusComponents as RadiusComponents
 from ._measurement import is_calibration_source as is_calibration_source
 from ._measurement import probe_residuals as probe_residuals
+from ._options import BAYES_SAMPLING as BAYES_SAMPLING
+from ._options import CALIBRATION_SAMPLING as CALIBRATION_SAMPLING
+from ._options import CHUNK_PARTS as CHUNK_PARTS
+from ._options import BatchOptions as BatchOptions
+from ._options import BayesOptions as BayesOptions
+from ._options import CalibrationOptions as CalibrationOptions
+from ._options import FitOptions as FitOptions
 from ._probe_cal_fit import AUTO_ORDERS as AUTO_ORDERS
 from ._probe_cal_fit import COND_LIMIT as COND_LIMIT
 from ._probe_cal_fit import fit_probe_calibration as fit_probe_calibration
@@ -37,8 +43,10 @@ from ._sigma import pooled_residuals as pooled_residuals
 from ._sigma import probe_sigma as probe_sigma
 from .lsq import COV_OK as COV_OK
 from .lsq import TUNING as TUNING
+from .lsq import FinalLoss as FinalLoss
 from .lsq import LsqArrays as LsqArrays
 from .lsq import LsqResult as LsqResult
+from .lsq import SolverOptions as SolverOptions
 from .lsq import Status as Status
 from .lsq import analyse as analyse
 from .lsq import flat_structure as flat_structure
@@ -56,6 +64,7 @@ from .mcmc import LogNormal as LogNormal
 from .mcmc import Normal as Normal
 from .mcmc import Posterior as Posterior
 from .mcmc import Prior as Prior
+from .mcmc import SamplerOptions as SamplerOptions
 from .mcmc import ScaledInvChi2 as ScaledInvChi2
 from .mcmc import StudentT as StudentT
 from .mcmc import Uniform as Uniform

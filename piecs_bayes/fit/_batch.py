@@ -18,7 +18,6 @@ Groups, buckets, memory: docs/models/batch_fits.md.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -28,7 +27,6 @@ from ..errors import InputError
 from ..geometry import Profile
 from ._batch_result import BatchFit, Group, inlier_ss
 from ._batch_solve import (
-    BATCH,
     Settings,
     batch_rows,
     dispatch,
@@ -38,11 +36,7 @@ from ._batch_solve import (
     retry_lm,
 )
 from ._features import padded_size
-from ._sigma import DECLARED_DOF
-
-#: parts per chunk (progress is reported per chunk)
-CHUNK_PARTS = 1024
-_SOLVERS = ("auto", "fast", "lm", "gauss_newton", "dogleg")
+from ._options import BatchOptions, FitOptions
 
 
 def fit_profiles(
@@ -52,23 +46,10 @@ def fit_profiles(
     centres,
     *,
     ball_radius: float,
-    method: str = "lsq",
-    loss: str = "huber",
-    scale: float | None = None,
-    sigma: float | None = None,
-    declared: float | None = None,
-    declared_dof: float = DECLARED_DOF,
-    fix: dict | None = None,
+    options: FitOptions = FitOptions(),
+    batch: BatchOptions = BatchOptions(),
     lines=None,
-    min_points: dict | None = None,
     file: str | None = None,
-    solver: str = "auto",
-    rtol: float = 1e-10,
-    atol: float = 1e-12,
-    max_steps: int = 1000,
-    chunk_size: int = CHUNK_PARTS,
-    batch_size: int = BATCH,
-    progress: bool | Callable[[int, int, str], None] = False,
 ) -> BatchFit:
     """Fit each feature of `profile` on every part, batched (see the module docstring).
 
@@ -77,59 +58,51 @@ def fit_profiles(
     - `part_ids`, `feature_ids`: `(n,)` part and feature of each point; parts keep
       the order of their first point (production order).
     - `centres`: `(n, 2)` ball centres in the part frame (mm, radius X).
-    - `ball_radius`, `method` (`"lsq"`/`"robust"`), `loss`, `scale`, `sigma`,
-      `declared`, `declared_dof`, `fix`, `lines`, `min_points`, `file`: as in
-      [`fit_profile`][], for every part (the probe sigma is pooled per part).
-    - `solver`: `"auto"` (default): the lean batch kernel (`_batch_kernel`: the
-      same staged objective and result statistics, Newton steps in closed form),
-      then the engine's Levenberg-Marquardt for any problem it did not solve, so a
-      failure carries the engine's status and message (every bucket, 8 to 4,096
-      points per feature and more, cost linear in points); `"fast"`: the kernel
-      alone;
-      or an engine solver for every problem: `"lm"` (`fit_profile`'s: the loop's
-      exact path), `"gauss_newton"`, `"dogleg"`. Under `vmap` a batch runs as many
-      steps as its slowest problem, and the engine's robust stages make LM take
-      ~125 steps per problem; the kernel takes ~12-20 and is 10-20x faster than
-      `"lm"`, with the same minimum (~1e-10 mm, 1e-7 standard errors, on the batch
-      data: `tests/fit/test_batch.py`).
-    - `rtol`, `atol`, `max_steps`: as in [`least_squares`][] (`fit_profile`'s
-      defaults).
-    - `chunk_size`: parts per compiled call (memory grows with it).
-    - `batch_size`: problems per compiled call (see `BATCH`; fewer for buckets
-      over `BATCH_POINTS // batch_size` points).
-    - `progress`: `True` for a tqdm bar, or a callable `progress(done, total, part)`
-      called after each chunk.
+    - `ball_radius`, `lines`, `file`: as in [`fit_profile`][].
+    - `options`: the [`FitOptions`][] of [`fit_profile`][], for every part (the
+      probe sigma is pooled per part). Its `solver`: `"auto"` (default): the lean
+      batch kernel (`_batch_kernel`: the same staged objective and result
+      statistics, Newton steps in closed form), then the engine's
+      Levenberg-Marquardt for any problem it did not solve, so a failure carries the
+      engine's status and message (every bucket, 8 to 4,096 points per feature and
+      more, cost linear in points); `"fast"`: the kernel alone; or an engine solver
+      for every problem: `"lm"` (`fit_profile`'s: the loop's exact path),
+      `"gauss_newton"`, `"dogleg"`. Under `vmap` a batch runs as many steps as its
+      slowest problem, and the engine's robust stages make LM take ~125 steps per
+      problem; the kernel takes ~12-20 and is 10-20x faster than `"lm"`, with the
+      same minimum (~1e-10 mm, 1e-7 standard errors, on the batch data:
+      `tests/fit/test_batch.py`). `rtol`, `atol`, `max_steps`: as in
+      [`least_squares`][].
+    - `batch`: the [`BatchOptions`][]: parts per compiled call (`chunk_size`),
+      problems per compiled call (`batch_size`) and `progress`.
 
     **Returns:** a [`BatchFit`][]. Input errors (unknown feature, too few points)
     raise the same [`InputError`][piecs_bayes.errors.InputError] as the loop;
     a fit that does not converge is reported in `BatchFit.failures`.
     """
-    # Over 80 lines only through its docstring (every argument documented); the
-    # body is a short sequence of named steps.
-    _check_options(method, solver, chunk_size, batch_size)
-    fix = {k: tuple(v) for k, v in (fix or {}).items()}
-    min_points = {"line": 3, "arc": 4, **(min_points or {})}
+    sigma, declared, chunk_size = options.sigma, options.declared, batch.chunk_size
+    fix, min_points = options.fix, options.min_points
     pts = _index_points(profile, part_ids, feature_ids, centres, lines, file)
     _validate(profile, pts.counts, fix, min_points, file)
     specs, pp, ff = _group_specs(profile, pts.counts, fix)
     # covariances at a reference sigma (known or declared: it sets the stationarity
     # test's scale), rescaled per part to its probe sigma
-    ref = float(sigma if sigma is not None else (declared if declared is not None else 1.0))
+    ref = options.reference_sigma
     st = Settings(
-        loss="linear" if method == "lsq" else loss,
-        solver=solver,
-        rtol=rtol,
-        atol=atol,
-        max_steps=max_steps,
+        loss=options.solve_loss,
+        solver=options.solver,
+        rtol=options.rtol,
+        atol=options.atol,
+        max_steps=options.max_steps,
         ball_radius=jnp.asarray(float(ball_radius)),
-        scale=jnp.asarray(np.nan if scale is None else float(scale)),
+        scale=jnp.asarray(np.nan if options.scale is None else float(options.scale)),
         sigma=jnp.asarray(ref),
     )
     chunk_of = pp // chunk_size
     n_chunks = int(math.ceil(len(pts.parts) / chunk_size))
     data = (pp, ff, pts.counts, pts.starts, pts.order, pts.centres, geometry_table(profile))
-    progress = _Progress(progress, pts.parts, chunk_size)
-    results = _solve_chunks(specs, chunk_of, n_chunks, data, st, int(batch_size), progress)
+    progress = _Progress(batch.progress, pts.parts, chunk_size)
+    results = _solve_chunks(specs, chunk_of, n_chunks, data, st, int(batch.batch_size), progress)
     groups = _collect_groups(specs, results, chunk_of, n_chunks, pp, ff, pts)
     ss, dof = _pooled(groups, len(pts.parts))
     return BatchFit(
@@ -137,9 +110,13 @@ def fit_profiles(
         parts=pts.parts,
         pooled_ss=ss,
         pooled_dof=dof,
-        sigma_rule=(declared if sigma is None else float(sigma), declared_dof, sigma is not None),
+        sigma_rule=(
+            declared if sigma is None else float(sigma),
+            options.declared_dof,
+            sigma is not None,
+        ),  # fmt: skip
         reference_sigma=ref,
-        method="lsq" if method == "lsq" else f"robust/{loss}",
+        method="lsq" if options.method == "lsq" else f"robust/{options.loss}",
         loss=st.loss,
         fix=fix,
         groups=tuple(groups),
@@ -149,19 +126,6 @@ def fit_profiles(
         ball_radius=float(ball_radius),
         file=file,
     )
-
-
-def _check_options(method, solver, chunk_size, batch_size) -> None:
-    if method not in ("lsq", "robust"):
-        raise ValueError(f"unknown method {method!r}; expected 'lsq' or 'robust'")
-    if solver not in _SOLVERS:
-        raise InputError(
-            f"unknown solver {solver!r}; expected 'auto', 'fast', 'lm', 'gauss_newton' or 'dogleg'"
-        )
-    if chunk_size < 1 or batch_size < 1:
-        raise InputError(
-            f"chunk_size and batch_size must be >= 1, got {chunk_size!r}, {batch_size!r}"
-        )
 
 
 class _Points(NamedTuple):

@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .lsq import Status, analyse, losses, stages, statistics
+from .lsq import FinalLoss, Status, analyse, losses, stages, statistics
 
 #: Gauss-Newton iterations per stage before giving up (MAX_STEPS_REACHED -> engine)
 MAX_ITER = 60
@@ -81,9 +81,9 @@ def kernel_solver(fn, p: int, loss: str, rtol: float, atol: float):
     scale, sigma)`, the first, second and fourth batched."""
     robust = losses.loss_id(loss) != 0
     ids, cs = stages(loss) if robust else (np.zeros(1, np.int32), np.ones(1))
-    final_id, tuning = int(ids[-1]), float(cs[-1])
+    final = FinalLoss(idx=int(ids[-1]), tuning=float(cs[-1]), custom=None, robust=robust)
     one = functools.partial(_solve_one, fn, p, robust, tuple(_runs(ids, cs)), rtol, atol)
-    stats = functools.partial(_statistics_one, fn, robust, final_id, tuning, atol)
+    stats = functools.partial(_statistics_one, fn, final, atol)
 
     def solve(points, geom, ball_radius, w, scale, sigma):
         y, code, steps, s_final = jax.vmap(one, in_axes=(0, 0, None, 0, None))(
@@ -123,16 +123,14 @@ def _solve_one(fn, p, robust, runs, rtol, atol, points, geom, ball_radius, w, sc
     return y, code, steps, s_final
 
 
-def _statistics_one(fn, robust, final_id, tuning, atol,
+def _statistics_one(fn, final: FinalLoss, atol,
                     points, geom, w, y, code, steps, s_final, ball_radius, sigma):  # fmt: skip
     """The statistics of `_solve_core` at the solution `y`: the same functions."""
     args = (points, geom, ball_radius)
     mask = w > 0
     wsqrt = jnp.sqrt(jnp.where(mask, w, 0.0))
-    info = analyse(fn, args, y, mask, wsqrt, s_final, final_id, None, robust)
-    return statistics(
-        info, y, code, steps, s_final, mask, w, sigma, final_id, tuning, None, robust, atol
-    )
+    info = analyse(fn, args, y, mask, wsqrt, s_final, final)
+    return statistics(info, y, code, steps, s_final, mask, w, sigma, final, atol)
 
 
 def _run(weighted, mask, scale, carry, idx, cs_run, rtol, atol):

@@ -15,16 +15,12 @@ import numpy as np
 from ..geometry import Profile
 from ._batch_kernel import kernel_solver, svd_batch
 from ._features import feature_residuals, geometry_args
-from .lsq import LsqArrays, Status, solve_arrays
+from .lsq import LsqArrays, SolverOptions, Status, solve_arrays
 
-#: problems per compiled call. One fixed size: every study, chunking and cluster
-#: reuses one compilation per group, and a problem's result does not depend on
-#: which others share its batch. (Padding a small study to it costs milliseconds.)
-BATCH = 256
 #: points (problems x bucket) per compiled call at most: buckets over 256 points
 #: get fewer problems per call (4,096 points: 16), so that a small study of densely
 #: probed parts is not padded to 256 problems and a call's arrays stay ~10 MB.
-#: Like `BATCH`, it depends on the bucket only: one compilation per group.
+#: Like `BATCH` (`BatchOptions`' default), it depends on the bucket only: one compilation per group.
 BATCH_POINTS = 1 << 16
 #: batch size of the Levenberg-Marquardt retries of `solver="auto"`
 _RETRY_BATCH = 8
@@ -52,6 +48,7 @@ def _engine_group_solver(kind, free, loss, solver, rtol, atol, max_steps):
     """Jitted `vmap` of `solve_arrays` for one residual function and settings."""
     fn = feature_residuals(kind, free)
     p = len(free)
+    options = SolverOptions(method=solver, rtol=rtol, atol=atol, max_steps=max_steps)
 
     def one(points, geom, ball_radius, weights, scale, sigma):
         return solve_arrays(
@@ -62,10 +59,7 @@ def _engine_group_solver(kind, free, loss, solver, rtol, atol, max_steps):
             loss=loss,
             scale=scale,
             sigma=sigma,
-            solver=solver,
-            rtol=rtol,
-            atol=atol,
-            max_steps=max_steps,
+            solver=options,
         )
 
     def solve(points, geom, ball_radius, weights, scale, sigma):

@@ -17,18 +17,20 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import MachineTransform, Profile
+from ..geometry import Profile
 from ._inference_data import BayesData, inference_data, pointwise_over_draws, write_netcdf
 from ._measurement import SOURCE_EFFECTS, is_calibration_source, probe_residuals, source_unit
+from ._options import BAYES_SAMPLING, BayesOptions
 from .mcmc import (
     Posterior,
+    SamplerOptions,
     check_moves,
     frozen,
     gaussian_loglik,
@@ -83,15 +85,8 @@ def profile_log_posterior(
     profile: Profile,
     feature_ids,
     *,
-    sources: dict,
-    ball_radius: float,
-    transform: MachineTransform,
-    sigma: float,
-    likelihood: str = "gaussian",
-    nu: float = 4.0,
+    options: BayesOptions,
     with_approach: bool = False,
-    file: str | None = None,
-    radius=None,
     weighted: bool = False,
 ):
     """Build ``(log_prob(theta, args), layout, priors)`` for a profile.
@@ -102,31 +97,29 @@ def profile_log_posterior(
     ``weighted``, ``(machine_points, approach, weights)``: each point's log likelihood
     counts ``weights`` times (0 leaves a point out, so that parts whose points differ
     only in which are left out share one compiled function).
-    ``sources`` maps source names to prior specs (the study's ``[uncertainty]``
-    tables); a probe calibration's components (``probe_cal_<j>``, normal priors)
-    need its `radius` (`RadiusComponents`). The function is cached per structure,
-    so many parts of one study share one compiled log posterior.
+    `options` is the model ([`BayesOptions`][]: the sources' prior specs, the ball
+    radius, transform, probe sigma, likelihood and a probe calibration's
+    components). The function is cached per structure, so many parts of one study
+    share one compiled log posterior.
     """
-    m = _model(*_model_key(profile, feature_ids, sources, ball_radius, transform, sigma,
-                           likelihood, nu, with_approach, file, radius), weighted)  # fmt: skip
+    m = _model(*_model_key(profile, feature_ids, options, with_approach), weighted)
     return m.log_prob, m.layout, m.priors
 
 
-def _model_key(profile, feature_ids, sources, ball_radius, transform, sigma, likelihood, nu,
-               with_approach, file, radius=None) -> tuple:  # fmt: skip
+def _model_key(profile, feature_ids, options: BayesOptions, with_approach) -> tuple:
     """`_model`'s hashable arguments."""
     return (
         profile,
         tuple(np.asarray(feature_ids).astype(str).tolist()),
-        _freeze(sources),
-        float(ball_radius),
-        transform,
-        float(sigma),
-        likelihood,
-        float(nu),
+        _freeze(options.sources),
+        float(options.ball_radius),
+        options.transform,
+        float(options.sigma),
+        options.likelihood,
+        float(options.nu),
         bool(with_approach),
-        file,
-        radius,
+        options.file,
+        options.radius,
     )
 
 
@@ -157,19 +150,7 @@ def _model(
     radius=None,
     weighted=False,
 ) -> _Model:
-    sources = {k: dict(v) for k, v in frozen_sources}
-    unknown = [
-        n for n in sources if is_calibration_source(n) and (radius is None or n not in radius.names)
-    ]
-    if unknown:
-        raise InputError(
-            f"source {unknown[0]!r} needs the probe calibration it belongs to", file=file
-        )
-    if likelihood not in ("gaussian", "student_t"):
-        raise InputError(
-            f"unknown likelihood {likelihood!r}; expected 'gaussian' or 'student_t'",
-            value=likelihood,
-        )
+    sources = {k: dict(v) for k, v in frozen_sources}  # checked by BayesOptions
     feature_ids = np.asarray(feature_ids).astype(str)
     measured = tuple(f.id for f in profile.features if np.any(feature_ids == f.id))
     priors = {name: prior_from_spec(name, dict(spec), file=file) for name, spec in sources.items()}
@@ -346,10 +327,11 @@ class BayesProfileFit:
 
     def _model(self) -> _Model:
         d = self._data()
-        return _model(*_model_key(
-            self.profile, d.feature_ids, d.sources, d.ball_radius, d.transform, d.sigma,
-            self.likelihood, d.nu, d.approach is not None, d.file, d.radius,
-        ))  # fmt: skip
+        options = BayesOptions(
+            sources=d.sources, ball_radius=d.ball_radius, sigma=d.sigma, transform=d.transform,
+            likelihood=self.likelihood, nu=d.nu, radius=d.radius, file=d.file,
+        )  # fmt: skip
+        return _model(*_model_key(self.profile, d.feature_ids, options, d.approach is not None))
 
     def __repr__(self) -> str:
         head = (
@@ -365,25 +347,11 @@ def fit_profile_bayes(
     *,
     start: dict,
     start_cov: dict | None = None,
-    sources: dict,
-    ball_radius: float,
-    transform: MachineTransform = MachineTransform(),
-    sigma: float,
-    likelihood: str = "gaussian",
-    nu: float = 4.0,
+    options: BayesOptions,
+    sampling: SamplerOptions = BAYES_SAMPLING,
     approach=None,
-    nsteps: int = 3000,
-    nwalkers: int | None = None,
-    n_ensembles: int = 4,
-    seed: int = 0,
-    progress=True,
-    on_fail: str = "warn",
-    moves: str | None = "de",
-    sampler: str = "lockstep",
     part: str | None = None,
-    file: str | None = None,
     lines=None,
-    radius=None,
 ) -> BayesProfileFit:
     """Sample the posterior of a profile's deviations and nuisance parameters.
 
@@ -394,59 +362,43 @@ def fit_profile_bayes(
       ``likelihood="student_t"``.
     - `start`, `start_cov`: least-squares deviations and covariances per
       feature id: the walkers start in a ball around them.
-    - `sources`: the study's uncertainty sources (prior specs).
-    - `sigma`: the known probe repeatability (used unless ``repeatability`` is
-      a source, in which case it is estimated with that prior).
-    - `nsteps`, `nwalkers`, `n_ensembles`, `seed`, `progress`, `on_fail`, `moves`,
-      `sampler`: sampler settings (see :func:`sample_posterior`); the lockstep JAX
-      sampler (``"lockstep"``) by default, emcee with ``"emcee"``;
-      differential-evolution moves by default (the nuisance parameters make the
-      posterior correlated).
+    - `options`: the model ([`BayesOptions`][]): the study's uncertainty sources
+      (prior specs), the ball radius and transform, the known probe repeatability
+      `sigma` (used unless ``repeatability`` is a source, in which case it is
+      estimated with that prior), the likelihood, and the probe calibration's
+      `RadiusComponents` (`radius`) when the sources hold its components
+      (``probe_cal_<j>``, nuisance parameters with normal priors).
+    - `sampling`: the sampler's [`SamplerOptions`][] (see :func:`sample_posterior`);
+      by default `BAYES_SAMPLING`: the lockstep JAX sampler (``"lockstep"``; emcee
+      with ``sampler="emcee"``), 3,000 steps, differential-evolution moves (the
+      nuisance parameters make the posterior correlated).
     - `lines`: the file line of each trigger (kept for the fit's `to_arviz()`).
-    - `radius`: the probe calibration's `RadiusComponents` when `sources` holds its
-      components (``probe_cal_<j>``, nuisance parameters with normal priors).
 
     **Returns:** a :class:`BayesProfileFit`.
     """
+    o = options
     log_prob, lay, priors = profile_log_posterior(
-        profile,
-        feature_ids,
-        sources=sources,
-        ball_radius=ball_radius,
-        transform=transform,
-        sigma=sigma,
-        likelihood=likelihood,
-        nu=nu,
-        with_approach=approach is not None,
-        file=file,
-        radius=radius,
+        profile, feature_ids, options=o, with_approach=approach is not None
     )
-    x0, _ = _start(lay, priors, start, start_cov, sigma)
+    x0, _ = _start(lay, priors, start, start_cov, o.sigma)
     post = sample_posterior(
         log_prob,
         x0,
         names=lay.names,
         cov0=None,
         args=(jnp.asarray(machine_points), None if approach is None else jnp.asarray(approach)),
-        nwalkers=nwalkers,
-        nsteps=nsteps,
-        seed=seed,
-        progress=progress,
-        n_ensembles=n_ensembles,
-        on_fail=on_fail,
-        moves=moves,
-        sampler=sampler,
+        options=sampling,
     )
     data = BayesData(
         feature_ids=frozen(np.asarray(feature_ids).astype(str)),
         machine_points=frozen(np.asarray(machine_points, dtype=float)),
         approach=None if approach is None else frozen(np.asarray(approach, dtype=float)),
         lines=None if lines is None else frozen(np.asarray(lines)),
-        sources={k: dict(v) for k, v in sources.items()}, ball_radius=float(ball_radius),
-        transform=transform, sigma=float(sigma), nu=float(nu), file=file,
-        sampler=post.sampler, moves=check_moves(moves), radius=radius,
+        sources={k: dict(v) for k, v in o.sources.items()}, ball_radius=float(o.ball_radius),
+        transform=o.transform, sigma=float(o.sigma), nu=float(o.nu), file=o.file,
+        sampler=post.sampler, moves=check_moves(sampling.moves), radius=o.radius,
     )  # fmt: skip
-    return BayesProfileFit(profile, post, lay, likelihood, part, data)
+    return BayesProfileFit(profile, post, lay, o.likelihood, part, data)
 
 
 def _start(lay: _Layout, priors: dict, start: dict, start_cov: dict | None, sigma: float):
@@ -476,28 +428,16 @@ def fit_profiles_bayes(
     machine_points,
     *,
     starts,
-    sources: dict,
-    ball_radius: float,
-    transform=None,
-    sigma: float,
-    likelihood: str = "gaussian",
-    nu: float = 4.0,
+    options: BayesOptions,
+    sampling: SamplerOptions = BAYES_SAMPLING,
     approach=None,
-    nsteps: int = 3000,
-    nwalkers: int | None = None,
-    n_ensembles: int = 4,
-    seed: int = 0,
-    progress=True,
-    on_fail: str = "warn",
-    moves: str | None = "de",
-    file: str | None = None,
     lines=None,
-    radius=None,
     inlier=None,
 ):
     """[`fit_profile_bayes`][] for many parts: parts with the same pattern of
     triggers (feature of each point, in order) share one compiled log posterior
-    and are sampled together by [`sample_posteriors`][].
+    and are sampled together by [`sample_posteriors`][] (the lockstep sampler:
+    `sampling.sampler` is not read).
 
     **Arguments:** `part_ids`, `feature_ids`, `machine_points` (and `approach`)
     (and `lines`) per trigger, as in `fit_profile_bayes`; `starts`: `{part: {feature: deviation}}`
@@ -505,14 +445,13 @@ def fit_profiles_bayes(
     not `BatchFit.outlier_mask`; default all): the others weigh 0 in the likelihood,
     so parts that differ only in which points they leave out still share one compiled
     log posterior (a part that would leave every point of a feature out is fitted on
-    its inliers alone, that feature unmeasured); the rest as `fit_profile_bayes`.
+    its inliers alone, that feature unmeasured); `options`, `sampling`: as
+    `fit_profile_bayes` (each group of parts gets the seed `sampling.seed` plus its
+    number).
 
     **Returns:** `{part: BayesProfileFit}` in the order of first appearance.
     """
-    from ..geometry import MachineTransform
-    from ._inference_data import BayesData
-
-    transform = MachineTransform() if transform is None else transform
+    o = options
     part_ids = np.asarray(part_ids).astype(str)
     feature_ids = np.asarray(feature_ids).astype(str)
     machine_points = np.asarray(machine_points, dtype=float)
@@ -529,10 +468,8 @@ def fit_profiles_bayes(
     out = {}
     for g, ((pattern, weighted), parts) in enumerate(patterns.items()):
         log_prob, lay, priors = profile_log_posterior(
-            profile, pattern, sources=sources, ball_radius=ball_radius, transform=transform,
-            sigma=sigma, likelihood=likelihood, nu=nu, with_approach=approach is not None,
-            file=file, radius=radius, weighted=weighted,
-        )  # fmt: skip
+            profile, pattern, options=o, with_approach=approach is not None, weighted=weighted
+        )
         x0 = np.zeros((len(parts), len(lay.names)))
         for i, p in enumerate(parts):
             for f, sl in lay.features:
@@ -540,24 +477,23 @@ def fit_profiles_bayes(
             for name, k in lay.nuisance:
                 x0[i, k] = priors[name].mean
             if lay.sigma_index is not None:
-                x0[i, lay.sigma_index] = sigma
+                x0[i, lay.sigma_index] = o.sigma
         pts = np.stack([machine_points[rows_of[p]] for p in parts])
         appr = None if approach is None else np.stack([approach[rows_of[p]] for p in parts])
         args = (pts, appr) + ((np.stack([keep[rows_of[p]] * 1.0 for p in parts]),) * weighted)
         posts = sample_posteriors(
-            log_prob, x0, names=lay.names, args=args, nwalkers=nwalkers, nsteps=nsteps,
-            seed=seed + g, progress=progress, n_ensembles=n_ensembles, on_fail=on_fail,
-            moves=moves,
+            log_prob, x0, names=lay.names, args=args,
+            options=replace(sampling, seed=sampling.seed + g),
         )  # fmt: skip
         for p, post in zip(parts, posts, strict=True):
             r = rows_of[p][keep[rows_of[p]]]  # the points fitted
             data = BayesData(
                 feature_ids=feature_ids[r], machine_points=machine_points[r],
                 approach=None if approach is None else np.asarray(approach)[r],
-                lines=None if lines is None else np.asarray(lines)[r], sources=dict(sources),
-                ball_radius=float(ball_radius), transform=transform, sigma=float(sigma),
-                nu=float(nu), file=file, sampler=post.sampler, moves=check_moves(moves),
-                radius=radius,
+                lines=None if lines is None else np.asarray(lines)[r], sources=dict(o.sources),
+                ball_radius=float(o.ball_radius), transform=o.transform, sigma=float(o.sigma),
+                nu=float(o.nu), file=o.file, sampler=post.sampler,
+                moves=check_moves(sampling.moves), radius=o.radius,
             )  # fmt: skip
-            out[p] = BayesProfileFit(profile, post, lay, likelihood, p, data)
+            out[p] = BayesProfileFit(profile, post, lay, o.likelihood, p, data)
     return {p: out[p] for p in order}

@@ -7,8 +7,8 @@ is its signed distance to the deviated feature minus the ball radius
 
 - line: ``offset`` (mm, along the outward normal), ``rotation`` (rad, CCW in
   the drawing frame, about the nominal mid-point);
-- arc: ``center_x``, ``center_z`` (mm), ``radius`` (mm); ``fix=("radius",)``
-  gives the fixed-radius arc.
+- arc: ``center_x``, ``center_z`` (mm), ``radius`` (mm); fixing ``radius``
+  (`FitOptions.fix`) gives the fixed-radius arc.
 
 The joint profile fit (:func:`fit_profile_joint`) shares the machine-to-part
 transform parameters (centre-line offset, Z shift, X and Z scale errors) over
@@ -27,6 +27,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import Feature, machine_to_part, rotate
+from ._options import FitOptions
 from .lsq import LsqResult, least_squares
 
 
@@ -198,11 +199,7 @@ def fit_feature(
     centres,
     *,
     ball_radius: float,
-    method: str = "lsq",
-    loss: str = "huber",
-    scale: float | None = None,
-    sigma: float | None = None,
-    fix: Sequence[str] = (),
+    options: FitOptions = FitOptions(),
     lines=None,
     throw: bool = True,
 ) -> FeatureFit:
@@ -213,16 +210,17 @@ def fit_feature(
     - `feature`: a nominal Line or Arc.
     - `centres`: ``(n, 2)`` ball centres, part frame, mm, radius X.
     - `ball_radius`: stylus ball radius (mm).
-    - `method`: ``"lsq"`` (plain) or ``"robust"`` (uses `loss`, `scale`).
-    - `sigma`: known probe repeatability; scales the covariance instead of the
-      residual variance.
-    - `fix`: parameter names held at zero (``("radius",)`` for a fixed-radius arc).
+    - `options`: the [`FitOptions`][]: `method` ``"lsq"`` (plain) or ``"robust"``
+      (uses `loss`, `scale`); `sigma`, the known probe repeatability, scales the
+      covariance instead of the residual variance; the feature's entry of `fix`,
+      parameter names held at zero (``{"fillet": ("radius",)}`` for a fixed-radius
+      arc); `rtol`, `atol`, `max_steps`. One solve of the engine's
+      Levenberg-Marquardt, whatever its `solver`.
     - `lines`: file line per point, kept for reports.
 
     **Returns:** a :class:`FeatureFit`.
     """
-    if method not in ("lsq", "robust"):
-        raise ValueError(f"unknown method {method!r}; expected 'lsq' or 'robust'")
+    fix = options.fix.get(feature.id, ())
     free = free_parameters(feature, fix)
     centres = np.asarray(centres, dtype=float)
     n = len(centres)
@@ -236,9 +234,10 @@ def fit_feature(
         jnp.zeros(len(free)),
         (jnp.asarray(padded), geometry_args(feature), jnp.asarray(float(ball_radius))),
         weights=weights,
-        loss="linear" if method == "lsq" else loss,
-        scale=scale,
-        sigma=sigma,
+        loss=options.solve_loss,
+        scale=options.scale,
+        sigma=options.sigma,
+        solver=options.engine_solver(),
         throw=throw,
     )
     values, cov = embed_free(feature.nparams, free, res.params, res.covariance)
@@ -260,7 +259,7 @@ def fit_feature(
         lines=np.arange(1, n + 1) if lines is None else np.asarray(lines),
         nominal_points=nominal,
         error_vectors=surface - nominal,
-        method=method if method == "lsq" else f"robust/{loss}",
+        method=options.method if options.method == "lsq" else f"robust/{options.loss}",
         result=res,
         fixed=tuple(fix),
     )

@@ -16,34 +16,37 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import MachineTransform, Profile, machine_to_part
-from ..io import split_fix
 from ._features import FeatureFit
+from ._options import FitOptions
 from ._profile_result import ProfileFit
-from ._sigma import DECLARED_DOF, probe_sigma
+from ._sigma import probe_sigma
 from .lsq import least_squares
 
 TRANSFORM_PARAMS = ("x_centre", "z_offset", "scale_x", "scale_z", "rotation")
 
 
-def _parse_fix(profile: Profile, fix) -> dict[str, set]:
+def _parse_fix(profile: Profile, fix: dict) -> dict[str, set]:
+    """`FitOptions.fix` as a set of names per feature; every feature and name must be
+    the profile's."""
     out: dict[str, set] = {f.id: set() for f in profile.features}
-    for item in fix:
-        fid, name = split_fix(item)
-        if fid not in out:
-            raise InputError(
-                f"cannot fix {item!r}: unknown feature {fid!r}; "
-                f"the profile has {', '.join(profile.ids)}",
-                feature=fid,
-                value=item,
-            )
-        if name not in profile[fid].param_names:
-            raise InputError(
-                f"cannot fix {item!r}: {fid!r} has parameters "
-                f"{', '.join(profile[fid].param_names)}",
-                feature=fid,
-                value=item,
-            )
-        out[fid].add(name)
+    for fid, names in fix.items():
+        for name in names:
+            item = f"{fid}.{name}"
+            if fid not in out:
+                raise InputError(
+                    f"cannot fix {item!r}: unknown feature {fid!r}; "
+                    f"the profile has {', '.join(profile.ids)}",
+                    feature=fid,
+                    value=item,
+                )
+            if name not in profile[fid].param_names:
+                raise InputError(
+                    f"cannot fix {item!r}: {fid!r} has parameters "
+                    f"{', '.join(profile[fid].param_names)}",
+                    feature=fid,
+                    value=item,
+                )
+            out[fid].add(name)
     return out
 
 
@@ -55,12 +58,7 @@ def fit_profile_joint(
     ball_radius: float,
     transform: MachineTransform = MachineTransform(),
     free_transform=(),
-    fix=(),
-    loss: str = "linear",
-    scale: float | None = None,
-    sigma: float | None = None,
-    declared: float | None = None,
-    declared_dof: float = DECLARED_DOF,
+    options: FitOptions = FitOptions(),
     lines=None,
     part: str | None = None,
 ) -> ProfileFit:
@@ -72,21 +70,23 @@ def fit_profile_joint(
       centre in **machine** coordinates (radius X, mm).
     - `transform`: the nominal machine->part transform (the study's).
     - `free_transform`: names from ``TRANSFORM_PARAMS`` to estimate.
-    - `fix`: ``"feature.parameter"`` names held at nominal.
-    - `loss`, `scale`: as for :func:`least_squares`.
-    - `sigma`, `declared`, `declared_dof`: the probe sigma rule of
-      :func:`fit_profile` (known sigma, else the residuals of the whole joint fit
-      with the declared repeatability as prior).
+    - `options`: the [`FitOptions`][]: `method` (``"lsq"``, the default: the linear
+      loss; ``"robust"``: `loss` with the scale `scale`, as for
+      :func:`least_squares`), `fix` (feature parameters held at nominal, every one
+      the profile's), the probe sigma rule of :func:`fit_profile` (`sigma` known,
+      else the residuals of the whole joint fit with the `declared` repeatability as
+      prior worth `declared_dof`) and the engine's tolerances.
 
     **Returns:** a :class:`ProfileFit` whose ``transform`` holds the estimated
     transform corrections with standard uncertainties, and whose feature fits
     carry their blocks of the joint covariance.
     """
     _check_free_transform(free_transform)
+    loss = options.solve_loss
     feature_ids = np.asarray(feature_ids).astype(str)
     pts = np.asarray(machine_points, dtype=float)
     lines = np.arange(1, len(pts) + 1) if lines is None else np.asarray(lines)
-    fixed = _parse_fix(profile, fix)
+    fixed = _parse_fix(profile, options.fix)
     measured = [f for f in profile.features if np.any(feature_ids == f.id)]
     unmeasured = tuple(f.id for f in profile.features if f not in measured)
     order = np.concatenate([np.flatnonzero(feature_ids == f.id) for f in measured])
@@ -100,16 +100,17 @@ def fit_profile_joint(
     n_par = sum(len(fr) for _, _, fr in groups) + len(free_t)
     if len(order) <= n_par:
         raise InputError(f"{len(order)} points are too few for a joint fit of {n_par} parameters")
-    ref = float(sigma if sigma is not None else (declared if declared is not None else 1.0))
+    ref = options.reference_sigma
     res = least_squares(
         _joint_residuals(groups, free_t, base),
         y0,
         (jnp.asarray(pts[order]), jnp.asarray(float(ball_radius))),
         loss=loss,
-        scale=scale,
+        scale=options.scale if loss != "linear" else None,
         sigma=ref,  # covariance at a reference sigma, rescaled to the probe sigma below
+        solver=options.engine_solver(),
     )
-    ps = _probe_sigma(res, n_par, sigma, declared, declared_dof, part)
+    ps = _probe_sigma(res, n_par, options, part)
     cov = None if res.covariance is None else np.asarray(res.covariance) * (ps.value / ref) ** 2
     t_final = _final_transform(base, free_t, res)
     fits = {}
@@ -134,8 +135,9 @@ def _check_free_transform(free_transform) -> None:
             )
 
 
-def _probe_sigma(res, n_par, sigma, declared, declared_dof, part):
+def _probe_sigma(res, n_par, options: FitOptions, part):
     """The probe sigma rule of `fit_profile` on the joint fit's inlier residuals."""
+    sigma, declared, declared_dof = options.sigma, options.declared, options.declared_dof
     inl = np.ones(len(res.residuals), dtype=bool)
     inl[list(res.outliers)] = False
     return probe_sigma(

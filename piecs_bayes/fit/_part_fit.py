@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import Profile
 from ._features import FeatureFit, check_point_count, embed_free, free_parameters, padded_size
+from ._options import BatchOptions
 from ._profile_result import ProfileFit
 from ._sigma import probe_sigma
 from .lsq import Status, flat_structure, result_from_arrays
@@ -37,8 +38,6 @@ PART_BATCH = 1
 #: padding): on the CPU a compiled group costs ~0.1 ms however small, a padded point
 #: ~2 us (the demo part: lines of 8 and 16 points become one group, 0.1 ms less)
 MERGE_POINTS = 64
-#: `fit_profiles`' tolerances (those of `least_squares`, which the loop uses)
-_TOLERANCES = (1e-10, 1e-12, 1000)
 #: layouts kept (least recently used dropped first)
 PLAN_CACHE = 32
 
@@ -95,8 +94,9 @@ _PLANS: OrderedDict = OrderedDict()
 _LOCK = threading.Lock()
 
 
-def fit_part(profile, feature_ids, centres, lines, fix, min_points, file, part, ref, kw):
-    """`fit_profile(solver="auto")` of one part (see the module's docstring).
+def fit_part(profile, feature_ids, centres, lines, options, file, part, ref, ball_radius):
+    """`fit_profile(solver="auto")` of one part (see the module's docstring), with the
+    [`FitOptions`][] `options` and covariances at the reference sigma `ref`.
 
     `fit_profile`'s checks and messages; each group padded as `fit_profiles` pads
     it and solved with the measured surface points in one compiled call whose
@@ -105,14 +105,14 @@ def fit_part(profile, feature_ids, centres, lines, fix, min_points, file, part, 
     sends the part to `fit_profiles` itself (its LM retries, the engine's status
     and message).
     """
-    method, loss, sigma, declared = kw["method"], kw["loss"], kw["sigma"], kw["declared"]
-    if method not in ("lsq", "robust"):
-        raise ValueError(f"unknown method {method!r}; expected 'lsq' or 'robust'")
-    loss_name = "linear" if method == "lsq" else loss
-    plan = _plan(profile, feature_ids, lines, fix, min_points, file, loss_name)
-    scale = np.nan if kw["scale"] is None else kw["scale"]
+    method, loss, sigma, declared = options.method, options.loss, options.sigma, options.declared
+    loss_name = options.solve_loss
+    fix, min_points = options.fix, options.min_points
+    tolerances = (options.rtol, options.atol, options.max_steps)
+    plan = _plan(profile, feature_ids, lines, fix, min_points, file, loss_name, tolerances)
+    scale = np.nan if options.scale is None else options.scale
     args = tuple((centres[g.gather], g.geometry, g.weights) for g in plan.groups)
-    numbers = (float(kw["ball_radius"]), float(scale), ref)
+    numbers = (float(ball_radius), float(scale), ref)
     key = tuple(v.hex() for v in numbers)  # NaN (no scale) is a key too
     scalars = plan.scalars.get(key)
     if scalars is None:  # a run's parts share them: on the device once
@@ -125,14 +125,14 @@ def fit_part(profile, feature_ids, centres, lines, fix, min_points, file, part, 
     arrays = [_fields(flat, g) for g in plan.groups]
     ok = int(Status.SUCCESSFUL)
     if any(code != ok for a in arrays for code in a["status_code"]):
-        return _fit_part_batch(profile, feature_ids, centres, lines, fix, min_points, file, part,
-                               kw)  # fmt: skip
+        return _fit_part_batch(profile, feature_ids, centres, lines, options, file, part,
+                               ball_radius)  # fmt: skip
     name = "" if part is None else str(part)
     ss, dof = _pooled(plan, arrays)
     try:
         ps = probe_sigma(
             ss, dof, declared=declared if sigma is None else float(sigma),
-            declared_dof=kw["declared_dof"], known=sigma is not None, what=f"part {name!r}",
+            declared_dof=options.declared_dof, known=sigma is not None, what=f"part {name!r}",
         )  # fmt: skip
     except InputError as exc:
         raise InputError(str(exc), file=file) from None
@@ -220,17 +220,18 @@ def _fields(flat: np.ndarray, g: _GroupPlan) -> dict:
     return out
 
 
-def _plan(profile, feature_ids, lines, fix, min_points, file, loss_name) -> _Plan:
-    """The part's `_Plan`, made on the first part of its layout (checks included)."""
+def _plan(profile, feature_ids, lines, fix, min_points, file, loss_name, tolerances) -> _Plan:
+    """The part's `_Plan`, made on the first part of its layout (checks included);
+    `tolerances` = `(rtol, atol, max_steps)`."""
     key = (id(profile), feature_ids.dtype.str, feature_ids.tobytes(),
            tuple(sorted((k, tuple(v)) for k, v in fix.items())),
-           tuple(sorted(min_points.items())), loss_name)  # fmt: skip
+           tuple(sorted(min_points.items())), loss_name, tolerances)  # fmt: skip
     with _LOCK:
         plan = _PLANS.get(key)
         if plan is not None and plan.profile is profile:  # held: its id is not reused
             _PLANS.move_to_end(key)
             return plan
-    plan = _make_plan(profile, feature_ids, lines, fix, min_points, file, loss_name)
+    plan = _make_plan(profile, feature_ids, lines, fix, min_points, file, loss_name, tolerances)
     with _LOCK:
         _PLANS[key] = plan
         while len(_PLANS) > PLAN_CACHE:
@@ -238,7 +239,8 @@ def _plan(profile, feature_ids, lines, fix, min_points, file, loss_name) -> _Pla
     return plan
 
 
-def _make_plan(profile, feature_ids, lines, fix, min_points, file, loss_name) -> _Plan:
+def _make_plan(profile, feature_ids, lines, fix, min_points, file, loss_name, tolerances
+               ) -> _Plan:  # fmt: skip
     check_feature_ids(profile, feature_ids, lines, file)
     f_index = {f.id: j for j, f in enumerate(profile.features)}
     feat = np.array([f_index[f] for f in feature_ids.tolist()], dtype=int)
@@ -262,7 +264,7 @@ def _make_plan(profile, feature_ids, lines, fix, min_points, file, loss_name) ->
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     takes = [js + [js[0]] * (PART_BATCH * -(-len(js) // PART_BATCH) - len(js))
              for js in specs.values()]  # fmt: skip
-    sig = (loss_name, *_TOLERANCES,
+    sig = (loss_name, *tolerances,
            tuple((*key, len(t)) for key, t in zip(specs, takes, strict=True)))  # fmt: skip
     run, meta = _part_solver(_table_key(profile), sig)
     import jax
@@ -312,13 +314,14 @@ def _merge_buckets(specs: dict[tuple, list[int]]) -> dict[tuple, list[int]]:
     return dict(sorted(merged.items(), key=lambda kv: kv[1][0]))
 
 
-def _fit_part_batch(profile, feature_ids, centres, lines, fix, min_points, file, part, kw):
+def _fit_part_batch(profile, feature_ids, centres, lines, options, file, part, ball_radius):
     """The part through `fit_profiles` (kernel, then LM for what it did not solve)."""
     from ._batch import fit_profiles
 
     batch = fit_profiles(
         profile, np.full(len(centres), "" if part is None else str(part)), feature_ids, centres,
-        **kw, fix=fix, lines=lines, min_points=min_points, file=file, batch_size=PART_BATCH,
+        ball_radius=ball_radius, options=options, batch=BatchOptions(batch_size=PART_BATCH),
+        lines=lines, file=file,
     )  # fmt: skip
     fit = batch.profile_fit(0, throw=True)
     return fit if part is not None else dataclasses.replace(fit, part=None)

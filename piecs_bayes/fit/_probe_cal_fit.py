@@ -23,9 +23,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import CalibrationArtefact, ProbeCalibration, approach_angle, lobe_basis
-from ._sigma import DECLARED_DOF
+from ._options import CALIBRATION_SAMPLING, CalibrationOptions
 from .lsq import TUNING, least_squares
-from .mcmc import gaussian_loglik, sample_posterior
+from .mcmc import SamplerOptions, gaussian_loglik, sample_posterior
 
 #: the condition number (unit-scaled design over the distinct directions) beyond
 #: which orders are refused: a coefficient's uncertainty would be amplified more than
@@ -206,17 +206,10 @@ def fit_probe_calibration(
     centres,
     approach,
     *,
-    orders="auto",
     sigma_declared: float,
-    sigma_dof: float = DECLARED_DOF,
-    sigma_known: bool = False,
-    method: str = "lsq",
-    loss: str = "huber",
+    options: CalibrationOptions = CalibrationOptions(),
     face=None,
-    nsteps: int = 3000,
-    seed: int = 0,
-    progress=False,
-    sampler: str = "lockstep",
+    sampling: SamplerOptions = CALIBRATION_SAMPLING,
 ) -> ProbeCalibration:
     r"""Fit the effective radius $r(\theta)$ on a certified artefact (module docstring).
 
@@ -225,29 +218,25 @@ def fit_probe_calibration(
     - `artefact`: the artefact and its certificate (`piecs_bayes.io.CalibrationArtefact`).
     - `centres` ``(n, 2)``: recorded ball centres (mm, x radius, z, part frame).
     - `approach` ``(n, 2)``: approach directions (normalised here).
-    - `orders`: ``"auto"`` or a tuple of orders in (2, 3) (``()``: one radius).
     - `sigma_declared`: the probe's declared repeatability (mm).
-    - `sigma_dof`: what the declared value is worth (the scaled-inverse-chi^2 prior's
-      nu, `method="bayes"`).
-    - `sigma_known`: the covariance from `sigma_declared` (dof infinite) instead of
-      the residuals (dof = n - p).
-    - `method`: ``"lsq"`` ((robust) least squares, `loss`; Huber by default with the
-      package's tuning times `sigma_declared` as its scale, as the part fits; the
-      linear loss below 3 dof, too few points to tell an outlier) or ``"bayes"``
-      (emcee, the certificate a normal prior on the sizes; started at the fit).
+    - `options`: the [`CalibrationOptions`][]: the `orders` (``"auto"`` or a tuple
+      of orders in (2, 3), ``()``: one radius), what the declared value is worth
+      (`sigma_dof`), whether it is known (`sigma_known`), the `method` (``"lsq"``,
+      (robust) least squares with `loss`, or ``"bayes"``, the certificate a normal
+      prior on the sizes, started at the fit) and the `loss`.
     - `face` ``(n,)`` bool: which points are the face pair's (default: the approach
       is nearer Z than X).
-    - `nsteps`, `seed`, `progress`, `sampler`: the sampler's (``"bayes"``:
-      `sample_posterior` with its differential-evolution mixture, never emcee's
-      snooker move; ``"lockstep"`` or ``"emcee"``).
+    - `sampling`: the sampler's settings (``"bayes"``: `sample_posterior`; by
+      default `CALIBRATION_SAMPLING`: 3,000 steps of the lockstep sampler with its
+      differential-evolution mixture, never emcee's snooker move, no progress bar).
 
     **Returns:** a `ProbeCalibration` (no probe, date, feed or inputs: the job's).
     """
-    if method not in ("lsq", "bayes"):
-        raise InputError(f"method {method!r}; expected 'lsq' or 'bayes'", value=method)
+    sigma_known, loss = options.sigma_known, options.loss
     if not (math.isfinite(sigma_declared) and sigma_declared > 0):
         raise InputError(f"sigma_declared must be > 0 (mm), got {sigma_declared!r}")
     design = _Design(artefact, centres, approach, face)
+    orders = options.orders
     if orders == "auto":
         orders = auto_orders(design, sigma_known=sigma_known)
     orders = tuple(sorted(orders))
@@ -269,9 +258,8 @@ def fit_probe_calibration(
     cov = cov + G @ np.diag(design.size_u**2) @ G.T
     dof = math.inf if sigma_known else float(res.dof)
     resid_sd = float(res.residual_sd)
-    if method == "bayes":
-        y, cov, dof = _bayes(design, args, y, res, sigma_declared, sigma_dof, sigma_known,
-                             nsteps, seed, progress, sampler)  # fmt: skip
+    if options.method == "bayes":
+        y, cov, dof = _bayes(design, args, y, res, sigma_declared, options, sampling)
     coef, ccov = y[nc:], cov[nc:, nc:]
     radii = lobe_basis(design.theta[design.distinct()], orders) @ coef
     return ProbeCalibration(
@@ -297,12 +285,13 @@ def _log_post(theta, args):
     return jnp.where(sigma > 0, lp + ll, -jnp.inf)
 
 
-def _bayes(design, args, y, res, sigma_declared, sigma_dof, sigma_known, nsteps, seed, progress,
-           sampler):  # fmt: skip
+def _bayes(design, args, y, res, sigma_declared, options: CalibrationOptions,
+           sampling: SamplerOptions):  # fmt: skip
     """The posterior mean and covariance of (centre, coefficients) and their dof: the
     residuals' dof plus the declared value's (the marginal of a normal linear model
     under the conjugate prior), infinite with a known sigma. With a known sigma the
     last parameter is a dummy N(sigma, 1) draw, so that one log posterior serves both."""
+    sigma_known, sigma_dof = options.sigma_known, options.sigma_dof
     s0 = sigma_declared if sigma_known else float(max(res.residual_sd, 1e-6))
     x0 = np.r_[y, design.sizes, s0]
     names = tuple(f"y{i}" for i in range(y.size)) + tuple(design.size_names) + ("sigma",)
@@ -310,8 +299,7 @@ def _bayes(design, args, y, res, sigma_declared, sigma_dof, sigma_known, nsteps,
         "uS": jnp.asarray(design.size_u), "nu": jnp.asarray(0.0 if sigma_known else sigma_dof),
         "s2": jnp.asarray(sigma_declared**2), "sigma": jnp.asarray(sigma_declared),
     }  # fmt: skip
-    post = sample_posterior(_log_post, x0, names=names, args=bargs, nsteps=nsteps, seed=seed,
-                            progress=progress, moves="de", sampler=sampler)  # fmt: skip
+    post = sample_posterior(_log_post, x0, names=names, args=bargs, options=sampling)
     k = y.size
     dof = math.inf if sigma_known else float(res.dof) + float(sigma_dof)
     return np.asarray(post.mean)[:k], np.asarray(post.cov)[:k, :k], dof

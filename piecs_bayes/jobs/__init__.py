@@ -66,6 +66,7 @@ from ._options import decision_settings as decision_settings
 from ._options import fit_options as fit_options
 from ._options import offset_settings as offset_settings
 from ._options import robust_scale as robust_scale
+from ._options import sampler_options as sampler_options
 from ._options import source_sds as source_sds
 from ._plan import FeaturePlan as FeaturePlan
 from ._plan import PlannedPoint as PlannedPoint

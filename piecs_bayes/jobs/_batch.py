@@ -26,7 +26,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import InputError
-from ..fit import CHUNK_PARTS, DECLARED_DOF, fit_profiles, to_part_frame
+from ..fit import (
+    CHUNK_PARTS,
+    DECLARED_DOF,
+    BatchOptions,
+    FitOptions,
+    fit_profiles,
+    to_part_frame,
+)
 from ..geometry import MachineTransform, Profile
 from ..io import parse_fix
 from ..uncertainty import characteristic_arrays, path_grid, path_jacobian_function
@@ -74,12 +81,7 @@ def capability_job(study, *, method: str, at: str, sources: Mapping[str, float],
 
 
 def _fit_job(job: CapabilityJob, part_ids, feature_ids, machine_points, lines, method):
-    return fit_profiles(
-        job.profile,
-        part_ids,
-        feature_ids,
-        to_part_frame(job.transform, machine_points),
-        ball_radius=job.ball_radius,
+    options = FitOptions(
         method=method,
         loss=job.loss,
         scale=job.scale,
@@ -87,10 +89,18 @@ def _fit_job(job: CapabilityJob, part_ids, feature_ids, machine_points, lines, m
         declared=job.declared,
         declared_dof=job.declared_dof,
         fix=dict(job.fix),
-        lines=lines,
         min_points=dict(job.min_points),
+    )
+    return fit_profiles(
+        job.profile,
+        part_ids,
+        feature_ids,
+        to_part_frame(job.transform, machine_points),
+        ball_radius=job.ball_radius,
+        options=options,
+        batch=BatchOptions(chunk_size=max(1, len(set(np.asarray(part_ids).tolist())))),
+        lines=lines,
         file=job.file,
-        chunk_size=max(1, len(set(np.asarray(part_ids).tolist()))),
     )
 
 
@@ -117,11 +127,11 @@ def fit_study_batch(
         probe.part,
         probe.feature,
         to_part_frame(study.transform, probe.points),
-        **fit_options(study, method),
+        ball_radius=study.probe.ball_radius,
+        options=fit_options(study, method),
+        batch=BatchOptions(chunk_size=chunk_size or CHUNK_PARTS, progress=progress),
         lines=probe.lines,
         file=probe.file,
-        chunk_size=chunk_size or CHUNK_PARTS,
-        progress=progress,
     )
 
 

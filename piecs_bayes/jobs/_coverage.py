@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from numbers import Integral, Real
 
 import numpy as np
@@ -183,7 +183,7 @@ def coverage_check(
 
     **Returns:** a [`CoverageResult`][].
     """
-    from ..fit import TUNING, fit_profiles, to_part_frame
+    from ..fit import TUNING, FitOptions, fit_profiles, to_part_frame
     from ..simulate import SimulatedProbing, simulate_parts
 
     o = options
@@ -213,9 +213,10 @@ def coverage_check(
     prop_sd = {**source_sd, **(radius.source_sd if radius else {})}
     bf = fit_profiles(
         profile, sim["part"], sim["feature"], to_part_frame(transform, sim["points"]),
-        ball_radius=ball_radius, method=method, loss=loss,
-        scale=TUNING.get(loss, 1.0) * noise_sd, sigma=noise_sd if known_sigma else None,
-        declared=noise_sd, declared_dof=declared_dof,
+        ball_radius=ball_radius, options=FitOptions(
+            method=method, loss=loss, scale=TUNING.get(loss, 1.0) * noise_sd,
+            sigma=noise_sd if known_sigma else None, declared=noise_sd, declared_dof=declared_dof,
+        ),
     )  # fmt: skip
     grid = path_grid(profile)
     feats = profile.features
@@ -280,7 +281,7 @@ def _monte_carlo_hits(
     intervals and bands (`target`: the truth as `_hits` takes it), sampled in chunks
     of `options.bayes_chunk` parts; `source_sd`, `ball_radius`, `radius`: those the
     parts were fitted with."""
-    from ..fit import fit_profiles_bayes
+    from ..fit import BAYES_SAMPLING, BayesOptions, fit_profiles_bayes
 
     o = options
     noise_sd, transform, seed, bayes_chunk = o.noise_sd, o.transform, o.seed, o.bayes_chunk
@@ -293,6 +294,8 @@ def _monte_carlo_hits(
         sources["repeatability"] = {
             "dist": "scaled_inv_chi2", "nu": max(declared_dof, 1e-3), "scale": noise_sd,
         }  # fmt: skip
+    model = BayesOptions(sources=sources, ball_radius=ball_radius, sigma=noise_sd,
+                         transform=transform, radius=radius)  # fmt: skip
     n_parts = len(bf.parts)
     starts = {bf.parts[i]: {fid: v[i] for fid, v in values.items()} for i in range(n_parts)}
     hits = []
@@ -304,10 +307,10 @@ def _monte_carlo_hits(
             warnings.simplefilter("ignore")  # short chains on purpose: coverage is the check
             posts = fit_profiles_bayes(
                 profile, sim["part"][sel], sim["feature"][sel], sim["points"][sel],
-                starts=starts, sources=sources, ball_radius=ball_radius,
-                transform=transform, sigma=noise_sd, nsteps=bayes_steps, n_ensembles=1,
-                nwalkers=bayes_walkers, progress=False, on_fail="ignore", seed=seed + 1 + lo,
-                radius=radius, inlier=keep[sel],
+                starts=starts, options=model, sampling=replace(
+                    BAYES_SAMPLING, nsteps=bayes_steps, n_ensembles=1, nwalkers=bayes_walkers,
+                    progress=False, on_fail="ignore", seed=seed + 1 + lo,
+                ), inlier=keep[sel],
             )  # fmt: skip
         for post in posts.values():
             u = monte_carlo_toolpath(profile, post.deviation_samples, grid=grid, p=o.p)

@@ -24,7 +24,7 @@ from ..io import (
     read_plan_points,
     read_probe_csv,
 )
-from ._options import bayes_options, calibration_sds, fit_options, robust_scale
+from ._options import bayes_options, calibration_sds, fit_options, sampler_options
 from ._probe_radius import calibrated_points, radius_components
 
 if TYPE_CHECKING:  # compensate pulls in scipy (~0.6 s): imported where it is used
@@ -156,8 +156,6 @@ def fit_study(
     method = method or study.fit.method
     if method == "bayes":
         method = "robust"  # the Bayesian fit starts from the robust one; see fit.bayes
-    loss = "linear" if method == "lsq" else study.fit.loss
-    sigma = study.probe.repeatability if study.fit.known_sigma else None
     if study.fit.free_transform:
         return fit_profile_joint(
             study.profile,
@@ -166,12 +164,7 @@ def fit_study(
             ball_radius=study.probe.ball_radius,
             transform=study.transform,
             free_transform=study.fit.free_transform,
-            fix=study.fit.fix,
-            loss=loss,
-            scale=robust_scale(study) if loss != "linear" else None,
-            sigma=sigma,
-            declared=study.probe.repeatability,
-            declared_dof=study.probe.repeatability_dof,
+            options=fit_options(study, method),
             lines=data.lines,
             part=part,
         )
@@ -179,11 +172,11 @@ def fit_study(
         study.profile,
         data.feature,
         to_part_frame(study.transform, data.points),
-        **fit_options(study, method),
+        ball_radius=study.probe.ball_radius,
+        options=replace(fit_options(study, method), solver=solver),
         lines=data.lines,
         file=data.file,
         part=part,
-        solver=solver,
     )
 
 
@@ -270,14 +263,15 @@ def bayes_study(
         approach=use.approach,
         lines=use.lines,
         part=fit.part,
-        sampler=sampler,
-        **bayes_options(
+        options=bayes_options(study),
+        sampling=sampler_options(
             study,
             nsteps=nsteps,
             n_ensembles=n_ensembles,
             seed=seed,
             progress=progress,
             on_fail=on_fail,
+            sampler=sampler,
         ),
     )
 

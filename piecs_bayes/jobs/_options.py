@@ -7,10 +7,20 @@ the same thing wherever it is used.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from ..compensate import OffsetSettings
 from ..decide import DecisionSettings, settings_from_spec
 from ..errors import InputError
-from ..fit import CALIBRATION_SOURCE, TUNING, prior_from_spec
+from ..fit import (
+    BAYES_SAMPLING,
+    CALIBRATION_SOURCE,
+    TUNING,
+    BayesOptions,
+    FitOptions,
+    SamplerOptions,
+    prior_from_spec,
+)
 from ..io import Study, parse_fix
 from ._probe_radius import radius_components
 
@@ -27,21 +37,21 @@ def robust_scale(study: Study) -> float:
     return TUNING.get(study.fit.loss, 1.0) * sd
 
 
-def fit_options(study: Study, method: str) -> dict:
-    """Keyword arguments of `fit.fit_profile` / `fit.fit_profiles` for ``method``
-    (``"lsq"`` or ``"robust"``): the probe, the loss and its scale, the probe sigma
-    rule (known, or declared with its weight), fixed parameters, minimum points."""
-    return {
-        "ball_radius": study.probe.ball_radius,
-        "method": method,
-        "loss": study.fit.loss,
-        "scale": robust_scale(study),
-        "sigma": study.probe.repeatability if study.fit.known_sigma else None,
-        "declared": study.probe.repeatability,
-        "declared_dof": study.probe.repeatability_dof,
-        "fix": parse_fix(study.fit.fix),
-        "min_points": {"line": study.fit.min_points_line, "arc": study.fit.min_points_arc},
-    }
+def fit_options(study: Study, method: str) -> FitOptions:
+    """The [`FitOptions`][piecs_bayes.fit.FitOptions] of `fit.fit_profile` /
+    `fit.fit_profiles` for ``method`` (``"lsq"`` or ``"robust"``): the loss and its
+    scale, the probe sigma rule (known, or declared with its weight), fixed
+    parameters, minimum points (the ball radius is the study's `probe.ball_radius`)."""
+    return FitOptions(
+        method=method,
+        loss=study.fit.loss,
+        scale=robust_scale(study),
+        sigma=study.probe.repeatability if study.fit.known_sigma else None,
+        declared=study.probe.repeatability,
+        declared_dof=study.probe.repeatability_dof,
+        fix=parse_fix(study.fit.fix),
+        min_points={"line": study.fit.min_points_line, "arc": study.fit.min_points_arc},
+    )
 
 
 def bayes_sources(study: Study) -> dict:
@@ -74,27 +84,45 @@ def calibration_sds(study: Study) -> dict[str, float]:
     return {} if radius is None else radius.source_sd
 
 
-def bayes_options(
-    study: Study, *, nsteps=None, n_ensembles=None, seed=0, progress=True, on_fail="warn"
-) -> dict:
-    """Keyword arguments of `fit.fit_profile_bayes` / `fit.fit_profiles_bayes` that
-    come from the study (and the caller's overrides)."""
-    return {
-        "sources": bayes_sources(study),
-        "radius": radius_components(study.probe.calibration),
-        "ball_radius": study.probe.ball_radius,
-        "transform": study.transform,
-        "sigma": study.probe.repeatability,
-        "likelihood": study.fit.likelihood,
-        "nu": study.fit.nu,
-        "nsteps": nsteps or study.fit.bayes_steps,
-        "nwalkers": study.fit.bayes_walkers,
-        "n_ensembles": n_ensembles or study.fit.bayes_ensembles,
-        "seed": seed,
-        "progress": progress,
-        "on_fail": on_fail,
-        "file": str(study.path),
-    }
+def bayes_options(study: Study) -> BayesOptions:
+    """The [`BayesOptions`][piecs_bayes.fit.BayesOptions] of `fit.fit_profile_bayes` /
+    `fit.fit_profiles_bayes`: the study's sources (`bayes_sources`), its probe
+    calibration, ball radius, transform and repeatability, and its likelihood."""
+    return BayesOptions(
+        sources=bayes_sources(study),
+        radius=radius_components(study.probe.calibration),
+        ball_radius=study.probe.ball_radius,
+        transform=study.transform,
+        sigma=study.probe.repeatability,
+        likelihood=study.fit.likelihood,
+        nu=study.fit.nu,
+        file=str(study.path),
+    )
+
+
+def sampler_options(
+    study: Study,
+    *,
+    nsteps=None,
+    n_ensembles=None,
+    seed=0,
+    progress=True,
+    on_fail="warn",
+    sampler="lockstep",
+) -> SamplerOptions:
+    """The [`SamplerOptions`][piecs_bayes.fit.SamplerOptions] of the Bayesian fit
+    (`fit.BAYES_SAMPLING`) with the study's steps, walkers and ensembles and the
+    caller's overrides."""
+    return replace(
+        BAYES_SAMPLING,
+        nsteps=nsteps or study.fit.bayes_steps,
+        nwalkers=study.fit.bayes_walkers,
+        n_ensembles=n_ensembles or study.fit.bayes_ensembles,
+        seed=seed,
+        progress=progress,
+        on_fail=on_fail,
+        sampler=sampler,
+    )
 
 
 def source_sds(study: Study) -> dict:

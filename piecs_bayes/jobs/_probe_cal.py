@@ -16,7 +16,7 @@ import hashlib
 import numpy as np
 
 from ..errors import InputError
-from ..fit import fit_probe_calibration
+from ..fit import CALIBRATION_SAMPLING, CalibrationOptions, fit_probe_calibration
 from ..io import (
     CalibrationFile,
     ProbeCalibration,
@@ -97,12 +97,14 @@ def calibrate_probe(
     with probe, date, feed and the SHA-256 of every input."""
     cal = read_calibration_file(path)
     centres, approach, face = calibration_points(cal)
-    fit = fit_probe_calibration(
-        cal.artefact, centres, approach, orders=cal.orders if orders is None else orders,
-        sigma_declared=cal.repeatability, sigma_dof=cal.repeatability_dof,
+    options = CalibrationOptions(
+        orders=cal.orders if orders is None else orders, sigma_dof=cal.repeatability_dof,
         sigma_known=cal.sigma == "known", method=method,
-        face=face if cal.artefact.face_width is not None else None, seed=seed,
-        progress=progress,
+    )  # fmt: skip
+    fit = fit_probe_calibration(
+        cal.artefact, centres, approach, sigma_declared=cal.repeatability, options=options,
+        face=face if cal.artefact.face_width is not None else None,
+        sampling=dataclasses.replace(CALIBRATION_SAMPLING, seed=seed, progress=progress),
     )  # fmt: skip
     inputs = tuple({"file": str(p), "sha256": _sha256(p)} for p in (cal.path, *cal.inputs))
     return dataclasses.replace(fit, probe=cal.probe, date=cal.date, feed=cal.feed, inputs=inputs)

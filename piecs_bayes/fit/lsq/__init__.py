@@ -7,8 +7,10 @@ from ._core import solve_arrays as solve_arrays
 from ._core import stages as stages
 from ._least_squares import flat_structure as flat_structure
 from ._least_squares import least_squares as least_squares
+from ._options import SolverOptions as SolverOptions
 from ._result import LsqResult as LsqResult
 from ._result import result_from_arrays as result_from_arrays
+from ._statistics import FinalLoss as FinalLoss
 from ._statistics import analyse as analyse
 from ._statistics import statistics as statistics
 from ._types import COV_OK as COV_OK

@@ -26,8 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import losses
-from ._statistics import analyse, statistics
-from ._types import SOLVERS, LsqArrays
+from ._options import SolverOptions
+from ._statistics import FinalLoss, analyse, statistics
+from ._types import LsqArrays
 
 #: rounds (scale, fit) of the Huber and of the final stages of a robust fit
 SCALE_ROUNDS = (5, 3)
@@ -65,10 +66,7 @@ def solve_arrays(
     loss: str | Callable = "linear",
     scale=None,
     sigma=None,
-    solver: str = "lm",
-    rtol: float = 1e-10,
-    atol: float = 1e-12,
-    max_steps: int = 1000,
+    solver: SolverOptions = SolverOptions(),
     x_scale: None | str | Any = None,
 ) -> LsqArrays:
     r"""Array-level core of [`least_squares`][]: never raises on a failed solve.
@@ -82,8 +80,8 @@ def solve_arrays(
     - `weights`: `(n,)` non-negative inverse-variance weights, `None` for ones.
       Zero excludes a point (padding); such points must still give finite residuals
       or they are masked to zero.
-    - `loss`, `scale`, `sigma`, `solver`, `rtol`, `atol`, `max_steps`: as in
-      [`least_squares`][]; `scale` and `sigma` may be traced arrays.
+    - `loss`, `scale`, `sigma`, `solver`: as in [`least_squares`][]; `scale` and
+      `sigma` may be traced arrays.
     - `x_scale`: parameter scaling for the solver (it solves for $z = y/x$):
       `None` (no rescaling, the default and usually best), `"y0"` (typical
       magnitudes $|y_0|$, 1 where $y_0 = 0$), `"jac"` ($1/$column norms of the
@@ -97,8 +95,6 @@ def solve_arrays(
     An [`LsqArrays`][] of arrays; `status_code` holds a [`Status`][] value.
     """
     ids, cs = (None, None) if is_linear(loss) else stages(loss)
-    if solver not in SOLVERS:
-        raise ValueError(f"unknown solver {solver!r}; expected one of {SOLVERS}")
     y0_flat = jnp.asarray(y0_flat, dtype=float)
     p = y0_flat.shape[0]
     # None -> arrays (NaN = "not given"), so that every variant shares one compile
@@ -113,23 +109,18 @@ def solve_arrays(
         x_scale = jnp.broadcast_to(jnp.asarray(x_scale, float), (p,))
     # strongly typed float64 scalars: a weak-typed NaN would be another compile
     nan = jnp.asarray(np.nan, dtype=jnp.float64)
+    staged = None if ids is None else (jnp.asarray(ids), jnp.asarray(cs))
     return _solve_core(
         fn,
         y0_flat,
         args,
         None if weights is None else jnp.asarray(weights, dtype=float),
-        None if ids is None else jnp.asarray(ids),
-        None if cs is None else jnp.asarray(cs),
+        staged,
         nan if scale is None else jnp.asarray(scale, dtype=jnp.float64),
         nan if sigma is None else jnp.asarray(sigma, dtype=jnp.float64),
         loss if callable(loss) else None,
         solver,
-        float(rtol),
-        float(atol),
-        int(max_steps),
         x_scale,
-        None if cs is None else jnp.asarray(cs[-1]),
-        None if ids is None else jnp.asarray(ids[-1]),
     )
 
 
@@ -152,24 +143,10 @@ def _lazy_filter_jit(fn):
 
 
 @_lazy_filter_jit
-def _solve_core(
-    fn,
-    y0,
-    args,
-    weights,
-    stage_ids,
-    stage_cs,
-    scale,
-    sigma,
-    custom,
-    solver_name,
-    rtol,
-    atol,
-    max_steps,
-    x_scale,
-    tuning,
-    final_id,
-):
+def _solve_core(fn, y0, args, weights, staged, scale, sigma, custom, solver, x_scale):
+    """The solve of `solve_arrays`: `staged` is `None` for the linear loss, else the
+    stages' loss indices and tuning constants (`stages`); `solver` the
+    `SolverOptions` (static: one compile per solver and tolerances)."""
     p = y0.shape[0]
     n = jax.eval_shape(fn, y0, args).shape[0]
     w = jnp.ones(n) if weights is None else jnp.asarray(weights, dtype=float)
@@ -178,27 +155,31 @@ def _solve_core(
     # optimistix on first use: the batch kernel (the CLI's fit) never needs it
     from ._solver import make_solver
 
-    solver = make_solver(solver_name, rtol, atol)
+    optx_solver = make_solver(solver.method, float(solver.rtol), float(solver.atol))
 
     def weighted(y, a):
         r = fn(y, a)
         return jnp.where(mask, wsqrt * r, 0.0)
 
+    stage_ids, stage_cs = (None, None) if staged is None else staged
+    final = FinalLoss(
+        idx=None if staged is None else stage_ids[-1],
+        tuning=None if staged is None else stage_cs[-1],
+        custom=custom,
+        robust=staged is not None,
+    )
     xs = _parameter_scale(weighted, y0, args, x_scale)
     z, code, steps, s_final = _staged_solve(
-        weighted, xs, y0, args, stage_ids, stage_cs, scale, mask, custom, solver, max_steps
+        weighted, xs, y0, args, staged, scale, mask, custom, optx_solver, int(solver.max_steps)
     )
     dof_f = jnp.maximum(jnp.sum(mask) - p, 1).astype(float)
-    robust = stage_ids is not None
-    g_final = _final_residuals(weighted, stage_ids, s_final, final_id, custom)
+    g_final = _final_residuals(weighted, stage_ids, s_final, final.idx, custom)
 
     def analyse_at(y):
-        return analyse(fn, args, y, mask, wsqrt, s_final, final_id, custom, robust)
+        return analyse(fn, args, y, mask, wsqrt, s_final, final)
 
     y, info = _polish(analyse_at, g_final, args, z * xs, dof_f)
-    return statistics(
-        info, y, code, steps, s_final, mask, w, sigma, final_id, tuning, custom, robust, atol
-    )
+    return statistics(info, y, code, steps, s_final, mask, w, sigma, final, float(solver.atol))
 
 
 def _parameter_scale(weighted, y0, args, x_scale):
@@ -211,11 +192,11 @@ def _parameter_scale(weighted, y0, args, x_scale):
     return jnp.where(jnp.isfinite(xs) & (xs > 0), xs, 1.0)
 
 
-def _staged_solve(weighted, xs, y0, args, stage_ids, stage_cs, scale, mask, custom, solver,
-                  max_steps):  # fmt: skip
-    """The optimistix solve of every stage (one for the linear loss), each started
-    at the previous one's solution: the scaled solution `z`, the last stage's
-    `Status` code, the steps of all stages and the last stage's loss scale."""
+def _staged_solve(weighted, xs, y0, args, staged, scale, mask, custom, solver, max_steps):
+    """The optimistix solve of every stage (one for the linear loss: `staged` None,
+    else the stages' loss indices and tuning constants), each started at the
+    previous one's solution: the scaled solution `z`, the last stage's `Status`
+    code, the steps of all stages and the last stage's loss scale."""
 
     def wrapped(z, a):
         user_args, s, idx = a
@@ -235,7 +216,7 @@ def _staged_solve(weighted, xs, y0, args, stage_ids, stage_cs, scale, mask, cust
         )
         return sol.value, status_code(sol.result), sol.stats["num_steps"]
 
-    if stage_ids is None:
+    if staged is None:
         z, code, steps = solve(y0 / xs, None, None)
         return z, code, steps, jnp.asarray(jnp.nan)
 
@@ -249,7 +230,7 @@ def _staged_solve(weighted, xs, y0, args, stage_ids, stage_cs, scale, mask, cust
         return (z, code, steps + more), s
 
     init = (y0 / xs, jnp.asarray(0, jnp.int32), jnp.asarray(0))
-    (z, code, steps), s_all = jax.lax.scan(stage, init, (stage_ids, stage_cs))
+    (z, code, steps), s_all = jax.lax.scan(stage, init, staged)
     return z, code, steps, s_all[-1]
 
 

@@ -26,8 +26,9 @@ import numpy as np
 from ...errors import AnalysisError, InputError
 from . import losses
 from ._core import is_linear, solve_arrays
+from ._options import SolverOptions
 from ._result import LsqResult, param_names, result_from_arrays
-from ._types import SOLVERS, Status
+from ._types import Status
 
 
 def _as_float_tree(y0):
@@ -49,10 +50,7 @@ def least_squares(
     loss: str | Callable = "linear",
     scale: float | None = None,
     sigma: float | None = None,
-    solver: str = "lm",
-    rtol: float = 1e-10,
-    atol: float = 1e-12,
-    max_steps: int = 1000,
+    solver: SolverOptions = SolverOptions(),
     x_scale: None | str | Any = None,
     throw: bool = True,
 ) -> LsqResult:
@@ -78,10 +76,9 @@ def least_squares(
     - `sigma`: known standard deviation of the weighted residuals (e.g. probe
       repeatability with unit weights). Given: covariance $\sigma^2(J^TWJ)^{-1}$;
       `None`: scaled by the residual variance.
-    - `solver`: `"lm"` (Levenberg-Marquardt), `"gauss_newton"` or `"dogleg"`.
-    - `rtol`, `atol`: optimistix's Cauchy termination tolerances (on both the
-      parameter and the residual change).
-    - `max_steps`: step limit of each stage.
+    - `solver`: a [`SolverOptions`][]: the method (`"lm"`, Levenberg-Marquardt, by
+      default; `"gauss_newton"` or `"dogleg"`), the tolerances `rtol`, `atol` and the
+      step limit `max_steps` of each stage.
     - `x_scale`: parameter scaling for the solver: `None`, `"y0"`, `"jac"` or
       typical magnitudes (a scalar or a pytree like `y0`), see [`solve_arrays`][].
     - `throw`: raise [`AnalysisError`][piecs_bayes.errors.AnalysisError] with the
@@ -93,11 +90,12 @@ def least_squares(
     A [`LsqResult`][].
 
     Raises `ValueError` (an [`InputError`][piecs_bayes.errors.InputError]) for an
-    unknown `loss` or `solver` or bad `weights`, `scale`, `sigma`.
+    unknown `loss` or bad `weights`, `scale`, `sigma` (and `SolverOptions` for an
+    unknown method or a bad `max_steps`).
     """
     # Over 80 lines only through its docstring (every argument documented); the
     # body is a short sequence of named steps.
-    _check_settings(loss, solver, scale, sigma, max_steps)
+    _check_settings(loss, scale, sigma)
     y0 = _as_float_tree(y0)
     y0_flat, unravel = ravel(y0)
     if y0_flat.size == 0:
@@ -120,9 +118,6 @@ def least_squares(
         scale=scale,
         sigma=sigma,
         solver=solver,
-        rtol=rtol,
-        atol=atol,
-        max_steps=max_steps,
         x_scale=x_scale,
     )
     arr = jax.tree_util.tree_map(np.asarray, arr)
@@ -142,18 +137,14 @@ def least_squares(
     return res
 
 
-def _check_settings(loss, solver, scale, sigma, max_steps) -> None:
+def _check_settings(loss, scale, sigma) -> None:
     if not (callable(loss) or (isinstance(loss, str) and loss in losses.LOSS_NAMES)):
         raise InputError(
             f"unknown loss {loss!r}; expected one of {losses.LOSS_NAMES} or a callable rho(z)"
         )
-    if solver not in SOLVERS:
-        raise InputError(f"unknown solver {solver!r}; expected one of {SOLVERS}")
     for name, val in (("scale", scale), ("sigma", sigma)):
         if val is not None and not (np.ndim(val) == 0 and np.isfinite(val) and val > 0):
             raise InputError(f"{name} must be a positive finite number or None, got {val!r}")
-    if not (isinstance(max_steps, int | np.integer) and max_steps > 0):
-        raise InputError(f"max_steps must be a positive integer, got {max_steps!r}")
 
 
 def _checked_weights(weights, n: int):

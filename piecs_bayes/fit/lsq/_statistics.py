@@ -16,6 +16,8 @@ The formulas: docs/models/least_squares.md, "What a solution says".
 
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import jax
 import jax.numpy as jnp
 
@@ -27,18 +29,30 @@ from ._types import COV_DOF, COV_NONFINITE, COV_OK, COV_ROBUST, COV_SINGULAR, Ls
 STATIONARY_RTOL = 1e-3
 
 
-def analyse(fn, args, y, mask, wsqrt, s_final, final_id, custom, robust):
+class FinalLoss(NamedTuple):
+    """The loss of a solve's last stage as the statistics read it: its index in
+    `losses.LOSS_NAMES` (`None` for the linear loss), its tuning constant, the custom
+    `rho` (or `None`) and whether it is robust (not the linear loss)."""
+
+    idx: Any
+    tuning: Any
+    custom: Any
+    robust: bool
+
+
+def analyse(fn, args, y, mask, wsqrt, s_final, loss: FinalLoss):
     """Residuals, Jacobian, robust weights and the SVD of the column-scaled
     weighted Jacobian at `y`, and the step `-(J_w^T J_w)^-1 J_w^T W e` (the
     Gauss-Newton step for the linear loss; zero exactly where the gradient
     `J_w^T W e` of the robust objective is zero)."""
     n, p = mask.shape[0], y.shape[0]
     eps = jnp.finfo(float).eps
+    final_id, custom = loss.idx, loss.custom
     r = fn(y, args)
     jac = jax.jacfwd(fn)(y, args)
     e = jnp.where(mask, wsqrt * r, 0.0)
     jw = jnp.where(mask[:, None], wsqrt[:, None] * jac, 0.0)
-    if robust:
+    if loss.robust:
         zz = (e / s_final) ** 2
         rw = jnp.where(mask, losses.rho_prime(final_id, zz, custom), 0.0)
         cost = 0.5 * jnp.sum(e * e * losses.rho_over_z(final_id, zz, custom))
@@ -59,26 +73,23 @@ def analyse(fn, args, y, mask, wsqrt, s_final, final_id, custom, robust):
     return info
 
 
-def statistics(
-    info, y, code, steps, s_final, mask, w, sigma, final_id, tuning, custom, robust, atol
-):
+def statistics(info, y, code, steps, s_final, mask, w, sigma, loss: FinalLoss, atol):
     """The result at the solution `y` from [`analyse`][]'s `info`: outliers,
     covariance (linear or Huber's robust sandwich, or from a known `sigma`) with its
     code, residual SD, and the final status (non-finite, degenerate, stalled)."""
     n, p = mask.shape[0], y.shape[0]
+    robust = loss.robust
     n_used = jnp.sum(mask).astype(jnp.int32)
     dof = n_used - p
     dof_f = jnp.maximum(dof, 1).astype(float)
     e, rw = info["e"], info["rw"]
     rss = jnp.sum(e * e)
     if robust:
-        w3 = losses.rho_prime(final_id, jnp.asarray((3.0 / tuning) ** 2), custom)
+        w3 = losses.rho_prime(loss.idx, jnp.asarray((3.0 / loss.tuning) ** 2), loss.custom)
         outlier = mask & (rw < w3)
     else:
         outlier = jnp.zeros(n, dtype=bool)
-    cov, cov_code, cond, robust_ok = _covariance(
-        info, mask, sigma, s_final, final_id, custom, robust, dof, rss
-    )
+    cov, cov_code, cond, robust_ok = _covariance(info, mask, sigma, s_final, loss, dof, rss)
     if robust:
         # reported, not used as a scale: an exact fit reports 0, never a placeholder
         resid_sd = losses.mad_sigma(e, mask, fallback=False)
@@ -106,7 +117,7 @@ def statistics(
     )
 
 
-def _covariance(info, mask, sigma, s_final, final_id, custom, robust, dof, rss):
+def _covariance(info, mask, sigma, s_final, loss: FinalLoss, dof, rss):
     """Covariance (NaN unless its code is `COV_OK`), its code, the condition number
     and whether the robust fit kept enough points (see the module docstring)."""
     n, p = mask.shape[0], info["v_scaled"].shape[0]
@@ -119,13 +130,13 @@ def _covariance(info, mask, sigma, s_final, final_id, custom, robust, dof, rss):
     a_inv = v_scaled @ v_scaled.T  # (J_w^T J_w)^-1
     robust_ok = jnp.asarray(True)
     sigma_given = jnp.isfinite(sigma)
-    if not robust:
+    if not loss.robust:
         factor = jnp.where(sigma_given, sigma**2, rss / dof_f)
     else:
         n_f = jnp.maximum(n_used, 1).astype(float)
-        factor, robust_ok = _huber_factor(info, mask, s_final, final_id, custom, p, n_f, dof_f)
+        factor, robust_ok = _huber_factor(info, mask, s_final, loss, p, n_f, dof_f)
     cov = factor * a_inv
-    if robust:
+    if loss.robust:
         # known sigma: weighted least squares with the final weights held fixed
         sandwich, singular_w = _fixed_weight_sandwich(info, sigma, n, p)
         singular = singular | (sigma_given & singular_w)
@@ -148,12 +159,12 @@ def _covariance(info, mask, sigma, s_final, final_id, custom, robust, dof, rss):
     return cov, cov_code, cond, robust_ok
 
 
-def _huber_factor(info, mask, s_final, final_id, custom, p, n_f, dof_f):
+def _huber_factor(info, mask, s_final, loss: FinalLoss, p, n_f, dof_f):
     """Huber (1981, sec. 7.6): the factor $K^2 [\\sum\\psi^2/dof] / [mean\\,\\psi']^2$ of
     $(J^TJ)^{-1}$, and whether enough points kept weight (fewer effective points
     than parameters: (nearly) everything rejected)."""
     e, rw = info["e"], info["rw"]
-    dpsi = losses.psi_prime(final_id, e / s_final, custom)
+    dpsi = losses.psi_prime(loss.idx, e / s_final, loss.custom)
     mean_dpsi = jnp.sum(jnp.where(mask, dpsi, 0.0)) / n_f
     var_dpsi = jnp.sum(jnp.where(mask, (dpsi - mean_dpsi) ** 2, 0.0)) / n_f
     safe_mean = jnp.where(mean_dpsi > 0, mean_dpsi, 1.0)

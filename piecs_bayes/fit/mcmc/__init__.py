@@ -7,6 +7,7 @@ from ._core import student_t_loglik as student_t_loglik
 from ._diagnostics import split_rhat as split_rhat
 from ._lockstep import sample_posteriors as sample_posteriors
 from ._moves import check_moves as check_moves
+from ._options import SamplerOptions as SamplerOptions
 from ._posterior import frozen as frozen
 from ._posterior import import_arviz as import_arviz
 from ._priors import HalfNormal as HalfNormal

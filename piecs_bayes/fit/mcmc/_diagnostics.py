@@ -137,9 +137,15 @@ def ess_and_rhat(chains) -> tuple[float, float]:
     return _ess(z), _rhat_from_split(x, z)
 
 
-def problems(names, tau_max, reliable, ess, rhat, s, *, nsteps, burn, thin, nwalkers,
-              rhat_max, min_ess, tau_factor, n_ensembles):  # fmt: skip
-    """Human-readable reasons (with numbers and advice) why a run is not trusted."""
+def problems(names, diag, s, options, *, thin):
+    """Human-readable reasons (with numbers and advice) why a run is not trusted:
+    `diag` = `(tau_max, reliable, ess, rhat)` per parameter of `s` kept steps, thinned
+    by `thin`, of a run of `options` (`SamplerOptions.for_dim`: the criteria, steps,
+    burn, walkers and ensembles)."""
+    tau_max, reliable, ess, rhat = diag
+    nsteps, burn, nwalkers, n_ensembles = (
+        options.nsteps, options.burn, options.nwalkers, options.n_ensembles)  # fmt: skip
+    rhat_max, min_ess, tau_factor = options.rhat_max, options.min_ess, options.tau_factor
     out = []
     worst = float(np.max(tau_max))
     kept_steps = s * thin

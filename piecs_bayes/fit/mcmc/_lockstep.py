@@ -31,7 +31,6 @@ from ...errors import AnalysisError, InputError
 from ._core import (
     ConvergenceError,
     ConvergenceWarning,
-    check_thin,
     cov_from_hessian,
     diagnose,
     neg_hessians,
@@ -39,7 +38,8 @@ from ._core import (
     start_cov,
 )
 from ._diagnostics import problems as _problems
-from ._moves import DE_FRACTION, DE_SIGMA, STRETCH_A, check_moves, de_gamma0
+from ._moves import DE_FRACTION, DE_SIGMA, STRETCH_A, de_gamma0
+from ._options import SamplerOptions
 from ._posterior import Posterior, make_posterior
 
 #: The sampler's name in `Posterior.sampler` and posterior.nc (with the backend).
@@ -223,19 +223,7 @@ def sample_posteriors(
     names,
     args: Any,
     cov0=None,
-    nwalkers: int | None = None,
-    nsteps: int = 2000,
-    burn: int | None = None,
-    thin: int | str = "auto",
-    seed: int = 0,
-    progress: bool | Callable[[str], None] = True,
-    n_ensembles: int = 4,
-    init_scale: float = 1.0,
-    on_fail: Literal["warn", "raise", "ignore"] = "warn",
-    rhat_max: float = 1.01,
-    min_ess: float = 400.0,
-    tau_factor: float = 50.0,
-    moves: str | None = None,
+    options: SamplerOptions = SamplerOptions(),
     backend: Literal["jax", "numpy"] = "jax",
 ) -> list[Posterior]:
     """Sample the posteriors of many parts of one model together (see module doc).
@@ -249,10 +237,10 @@ def sample_posteriors(
       `p`'s data is `tree_map(lambda a: a[p], args)`.
     - `cov0`: start-ball covariance per part, `(P, dim, dim)` or `(P, dim)`
       variances; `None`: the inverse Hessian of `-log_prob` at each `x0`.
-    - the rest: as [`sample_posterior`][] (`moves`: `None`/`"stretch"` or `"de"`);
-      `on_fail` applies per part (one warning lists every failing part).
-    - `progress`: one tqdm progress bar for all ensembles; a callable also gets a
-      line before the diagnostics (as [`sample_posterior`][]).
+    - `options`: the [`SamplerOptions`][] as [`sample_posterior`][] takes them (its
+      `sampler` is not read: this is the lockstep sampler); `on_fail` applies per
+      part (one warning lists every failing part); `progress`: one tqdm progress bar
+      for all ensembles, a callable also gets a line before the diagnostics.
     - `backend`: `"jax"` (default): the whole chain is one jitted loop (moves,
       acceptance and the log posterior, compiled once per model; run in blocks of
       `_BLOCK` kept steps for the progress bar), no Python per step; `"numpy"`: the
@@ -266,22 +254,19 @@ def sample_posteriors(
 
     **Returns:** one [`Posterior`][piecs_bayes.fit.Posterior] per part, in order.
     """
-    # Over 80 lines only through its docstring (every argument documented); the
-    # body is a short sequence of named steps.
-    x0, names, nwalkers, burn, thin_spec, thin, moves = _checked_run(
-        x0, names, args, on_fail, moves, nwalkers, nsteps, burn, thin, n_ensembles, backend
-    )
+    x0, names, opts = _checked_run(x0, names, args, options, backend)
     n_parts, ndim = x0.shape
     cov0 = None if cov0 is None else np.asarray(cov0, dtype=float)
     args = jax.tree_util.tree_map(jnp.asarray, args)
     vec = _parts_walkers(log_prob)
-    k_ens, w = n_ensembles, nwalkers
+    k_ens, w = opts.n_ensembles, opts.nwalkers
+    nsteps, burn, thin, moves = opts.nsteps, opts.burn, opts.run_thin, opts.moves
 
     def lp_fn(q):
         return _evaluate(vec, q, args, n_parts, k_ens)
 
-    rng = np.random.default_rng(np.random.SeedSequence(seed))
-    coords, lp = _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, init_scale)
+    rng = np.random.default_rng(np.random.SeedSequence(opts.seed))
+    coords, lp = _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, opts.init_scale)
     n_keep = (nsteps - burn + thin - 1) // thin
     if backend == "jax":
         run = _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin,
@@ -289,42 +274,39 @@ def sample_posteriors(
     else:
         run = functools.partial(_run_numpy, rng, coords, lp, lp_fn, moves, nsteps, burn, thin,
                                 n_keep)  # fmt: skip
-    bar = _bar(progress, nsteps, n_parts, k_ens)
+    bar = _bar(opts.progress, nsteps, n_parts, k_ens)
     t0 = time.perf_counter()
     kept, kept_lp, n_acc, steps_run = run(bar)
     wall = time.perf_counter() - t0
     if bar is not None:
         bar.close()
-    if callable(progress):
-        progress("posterior diagnostics: autocorrelation times, ESS and R-hat per parameter")
+    if callable(opts.progress):
+        opts.progress("posterior diagnostics: autocorrelation times, ESS and R-hat per parameter")
 
-    criteria = {"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor}
     out, failed = [], []
     for p in range(n_parts):
         sl = slice(p * k_ens, (p + 1) * k_ens)
         post = _part_posterior(
             names, kept[:, sl].transpose(1, 0, 2, 3), kept_lp[:, sl].transpose(1, 0, 2),
-            (n_acc[sl] / steps_run).reshape(-1), thin, thin_spec, nsteps=nsteps, burn=burn,
-            wall_time=wall / n_parts, criteria=criteria, sampler=f"{LOCKSTEP} ({backend})",
+            (n_acc[sl] / steps_run).reshape(-1), opts, wall_time=wall / n_parts,
+            sampler=f"{LOCKSTEP} ({backend})",
         )  # fmt: skip
         out.append(post)
         if post.problems:
             failed.append((p, list(post.problems)))
-    if failed and on_fail != "ignore":
+    if failed and opts.on_fail != "ignore":
         msg = f"MCMC runs of {len(failed)} of {n_parts} parts have not converged:\n" + "\n".join(
             f"  part {p}: " + "; ".join(pr) for p, pr in failed
         )
-        if on_fail == "raise":
+        if opts.on_fail == "raise":
             raise ConvergenceError(msg, posterior=out)
         warnings.warn(msg, ConvergenceWarning, stacklevel=2)
     return out
 
 
-def _checked_run(x0, names, args, on_fail, moves, nwalkers, nsteps, burn, thin, n_ensembles,
-                 backend):  # fmt: skip
+def _checked_run(x0, names, args, options: SamplerOptions, backend):
     """`sample_posteriors`' checked settings: `x0` as a `(P, dim)` array, `names` as
-    a tuple, `nwalkers` and `burn` with their defaults, the thinning asked for and
-    the thinning of the run, `moves`."""
+    a tuple, and the options for its dimension (`SamplerOptions.for_dim`)."""
     x0 = np.asarray(x0, dtype=float)
     if x0.ndim != 2 or not np.all(np.isfinite(x0)):
         raise InputError(f"x0: expected a finite (parts, dim) array, got shape {x0.shape}")
@@ -338,27 +320,12 @@ def _checked_run(x0, names, args, on_fail, moves, nwalkers, nsteps, burn, thin, 
                 f"args: every leaf needs a leading axis of {n_parts} parts, got shape "
                 f"{np.shape(leaf)}"
             )
-    if on_fail not in ("warn", "raise", "ignore"):
-        raise InputError(f"on_fail: got {on_fail!r}, expected 'warn', 'raise' or 'ignore'")
-    moves = check_moves(moves)
-    if nwalkers is None:
-        nwalkers = max(64, 4 * ndim)
-        nwalkers += nwalkers % 2
-    if nwalkers < 2 * ndim or nwalkers % 2:
-        raise InputError(f"nwalkers: got {nwalkers}, expected an even number >= 2 * dim")
-    burn = nsteps // 4 if burn is None else int(burn)
-    thin_spec = check_thin(thin)
-    thin = 1 if thin_spec == "auto" else thin_spec
-    if not (0 <= burn < nsteps) or thin < 1 or (nsteps - burn) // thin < 8:
-        raise InputError(
-            f"nsteps={nsteps}, burn={burn}, thin={thin}: expected 0 <= burn < nsteps, thin >= 1 "
-            "and at least 8 kept steps"
-        )
-    if n_ensembles < 1:
-        raise InputError(f"n_ensembles: got {n_ensembles}, expected >= 1")
+    opts = options.for_dim(ndim)
+    if opts.nwalkers < 2 * ndim or opts.nwalkers % 2:
+        raise InputError(f"nwalkers: got {opts.nwalkers}, expected an even number >= 2 * dim")
     if backend not in ("jax", "numpy"):
         raise InputError(f"backend: got {backend!r}, expected 'jax' or 'numpy'")
-    return x0, names, nwalkers, burn, thin_spec, thin, moves
+    return x0, names, opts
 
 
 def _bar(progress, nsteps: int, n_parts: int, k_ens: int):
@@ -443,13 +410,14 @@ def _run_numpy(rng, coords, lp, lp_fn, moves, nsteps, burn, thin, n_keep, bar):
     return kept, kept_lp, n_acc, nsteps
 
 
-def _part_posterior(names, kept, kept_lp, acceptance, thin, thin_spec, *, nsteps, burn,
-                    wall_time, criteria, sampler) -> Posterior:  # fmt: skip
+def _part_posterior(names, kept, kept_lp, acceptance, opts: SamplerOptions, *, wall_time,
+                    sampler) -> Posterior:  # fmt: skip
     """One part's [`Posterior`][] from its ensembles' kept draws `(K, S, W, d)` and
     log posteriors `(K, S, W)` (thinned further and diagnosed as
     `sample_posterior` does)."""
+    nsteps = opts.nsteps
     kp, lp_p, thin_p, tau, tau_max, reliable, ess, rhat = diagnose(
-        kept, kept_lp, thin, thin_spec, criteria["tau_factor"]
+        kept, kept_lp, opts.run_thin, opts.thin, opts.tau_factor
     )  # kp: (K, S, W, d)
     # a chain too short (or stuck) for an estimate: tau unknown, never trusted
     unknown = ~np.isfinite(tau_max)
@@ -457,11 +425,8 @@ def _part_posterior(names, kept, kept_lp, acceptance, thin, thin_spec, *, nsteps
     tau_max = np.where(unknown, float(nsteps), tau_max)
     reliable = reliable & ~unknown
     ess = np.where(np.isfinite(ess), ess, 0.0)
-    problems = _problems(
-        names, tau_max, reliable, ess, rhat, kp.shape[1], nsteps=nsteps, burn=burn,
-        thin=thin_p, nwalkers=kp.shape[2], n_ensembles=kp.shape[0], **criteria,
-    )  # fmt: skip
+    problems = _problems(names, (tau_max, reliable, ess, rhat), kp.shape[1], opts, thin=thin_p)
     return make_posterior(
-        names, kp, lp_p, acceptance, (tau, reliable, ess, rhat), problems, nsteps=nsteps,
-        burn=burn, thin=thin_p, wall_time=wall_time, criteria=dict(criteria), sampler=sampler,
+        names, (kp, lp_p, acceptance), (tau, reliable, ess, rhat), problems, opts, thin=thin_p,
+        wall_time=wall_time, sampler=sampler,
     )  # fmt: skip

@@ -223,14 +223,15 @@ def import_arviz():
     return az
 
 
-def make_posterior(
-    names, kept, lps, acceptance, diag, problems, *, nsteps, burn, thin, wall_time, criteria,
-    sampler,
-) -> Posterior:  # fmt: skip
-    """The [`Posterior`][] of thinned draws `kept` `(K, S, W, d)` of `K` ensembles of
-    `W` walkers and their log posteriors `lps` `(K, S, W)`; `acceptance` per walker,
-    `diag` = `(tau, tau_reliable, ess, rhat)` per parameter, `problems` the failed
-    criteria (none: converged), `sampler` the name of what made them."""
+def make_posterior(names, draws, diag, problems, options, *, thin, wall_time, sampler
+                   ) -> Posterior:  # fmt: skip
+    """The [`Posterior`][] of thinned draws: `draws` = `(kept, lps, acceptance)`, the
+    draws `(K, S, W, d)` of `K` ensembles of `W` walkers, their log posteriors
+    `(K, S, W)` and the acceptance per walker; `diag` = `(tau, tau_reliable, ess,
+    rhat)` per parameter, `problems` the failed criteria (none: converged),
+    `options` the run's `SamplerOptions` (`for_dim`: its steps, burn and criteria),
+    `thin` the total thinning, `sampler` the name of what made them."""
+    kept, lps, acceptance = draws
     k, s, w, d = kept.shape
     tau, reliable, ess, rhat = diag
     return Posterior(
@@ -246,10 +247,10 @@ def make_posterior(
         problems=tuple(problems),
         n_ensembles=k,
         nwalkers=w,
-        nsteps=nsteps,
-        burn=burn,
+        nsteps=options.nsteps,
+        burn=options.burn,
         thin=thin,
         wall_time=wall_time,
-        criteria=criteria,
+        criteria=options.criteria,
         sampler=sampler,
     )

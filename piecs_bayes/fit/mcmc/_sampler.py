@@ -21,7 +21,8 @@ import functools
 import sys
 import time
 import warnings
-from typing import Any, Literal
+from dataclasses import replace
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -31,14 +32,14 @@ from ...errors import AnalysisError, InputError
 from ._core import (
     ConvergenceError,
     ConvergenceWarning,
-    check_thin,
     diagnose,
     sqrt_psd,
     start_cov,
 )
 from ._diagnostics import problems as _problems
 from ._lockstep import sample_posteriors
-from ._moves import check_moves, emcee_moves
+from ._moves import emcee_moves
+from ._options import SamplerOptions
 from ._posterior import Posterior, emcee_module, make_posterior
 
 
@@ -56,20 +57,7 @@ def sample_posterior(
     names,
     cov0=None,
     args: Any = None,
-    nwalkers: int | None = None,
-    nsteps: int = 2000,
-    burn: int | None = None,
-    thin: int | str = "auto",
-    seed: int = 0,
-    progress=True,
-    n_ensembles: int = 4,
-    init_scale: float = 1.0,
-    on_fail: Literal["warn", "raise", "ignore"] = "warn",
-    rhat_max: float = 1.01,
-    min_ess: float = 400.0,
-    tau_factor: float = 50.0,
-    moves: str | None = None,
-    sampler: Literal["emcee", "lockstep"] = "emcee",
+    options: SamplerOptions = SamplerOptions(),
 ) -> Posterior:
     """Sample a posterior from independent ensembles started around `x0`, with emcee
     or the lockstep JAX sampler.
@@ -85,96 +73,61 @@ def sample_posterior(
       `-log_prob` at `x0`. Walkers start at draws of $N(x_0,$ `init_scale`$^2 C_0)$,
       redrawn where `log_prob` is not finite.
     - `args`: pytree passed to `log_prob` (data, known constants).
-    - `nwalkers`: walkers per ensemble; default `max(64, 4 dim)` (even). Walkers
-      are nearly free under `vectorize=True` (emcee's per-step Python overhead
-      dominates), so more walkers buy effective samples per second: on Newcomb's
-      2-parameter model, 64 walkers gave 2.8x the ESS/s of 32.
-    - `nsteps`, `burn` (default `nsteps // 4`), `thin`: steps per ensemble,
-      steps discarded, thinning of the kept steps: an int, or ``"auto"`` (the
-      default): about half the smallest autocorrelation time, estimated on the
-      unthinned draws (ESS and R-hat are then those of the stored draws).
-    - `seed`: seeds every ensemble's start and random stream (reproducible).
-    - `progress`: tqdm progress bar per ensemble (emcee's; one for all of them with
-      the lockstep sampler); a callable also gets a line before the diagnostics.
-    - `n_ensembles`: independent ensembles, for $\\hat R$ (see module doc).
-    - `on_fail`: `"warn"` (`ConvergenceWarning`), `"raise"` (`ConvergenceError`)
-      or `"ignore"` when the run does not meet the criteria below.
-    - `moves`: ``None``/``"stretch"`` (emcee's stretch move) or ``"de"``: 80 %
-      differential evolution, 20 % stretch (the same mixture as the lockstep
-      sampler, see `piecs_bayes.fit.mcmc._moves`; never emcee 3.1.6's biased DE
-      snooker move). DE mixes about twice as fast per step on correlated
-      posteriors of ~20 dimensions (profile fits with nuisance parameters).
-    - `sampler`: ``"emcee"`` (emcee's `EnsembleSampler`, one ensemble after the
-      other) or ``"lockstep"``: the same ensembles and moves stepped together in
-      one jitted JAX loop ([`sample_posteriors`][] with one part, backend
-      ``"jax"``; no Python per step, several times emcee's effective samples per
-      second). Same diagnostics, verdict and `Posterior`; other random numbers;
-      `nwalkers` must be even.
-    - `rhat_max`, `min_ess`, `tau_factor`: criteria: split $\\hat R \\le$ `rhat_max`,
-      ESS $\\ge$ `min_ess`, kept chain $\\ge$ `tau_factor` $\\tau$ for every parameter.
+    - `options`: the run's [`SamplerOptions`][] (walkers, steps, burn, thinning,
+      seed, progress, ensembles, moves, the convergence criteria and `on_fail`).
+      Its `sampler`: ``"emcee"`` (the default: emcee's `EnsembleSampler`, one
+      ensemble after the other) or ``"lockstep"``: the same ensembles and moves
+      stepped together in one jitted JAX loop ([`sample_posteriors`][] with one
+      part, backend ``"jax"``; no Python per step, several times emcee's effective
+      samples per second). Same diagnostics, verdict and `Posterior`; other random
+      numbers; `nwalkers` must be even.
 
     **Returns:** a `Posterior`.
     """
-    # Over 80 lines only through its docstring (every argument documented); the
-    # body is a short sequence of named steps.
-    x0, names, nwalkers, burn, thin_spec, thin, moves = _checked_run(
-        x0, names, on_fail, nwalkers, nsteps, burn, thin, n_ensembles, moves
-    )
-    criteria = {"rhat_max": rhat_max, "min_ess": min_ess, "tau_factor": tau_factor}
-    if sampler == "lockstep":
+    x0, names, opts = _checked_run(x0, names, options)
+    if opts.sampler == "lockstep":
         post = sample_posteriors(
             log_prob, x0[None], names=names, cov0=None if cov0 is None else np.asarray(cov0)[None],
-            args=jax.tree_util.tree_map(lambda a: jnp.asarray(a)[None], args), nwalkers=nwalkers,
-            nsteps=nsteps, burn=burn, thin=thin_spec, seed=seed, progress=progress,
-            n_ensembles=n_ensembles, init_scale=init_scale, on_fail="ignore", moves=moves,
-            backend="jax", **criteria,
+            args=jax.tree_util.tree_map(lambda a: jnp.asarray(a)[None], args),
+            options=replace(opts, on_fail="ignore"), backend="jax",
         )[0]  # fmt: skip
-    elif sampler == "emcee":
-        post = _sample_emcee(
-            log_prob, x0, names, cov0, args, nwalkers, nsteps, burn, thin_spec, thin, seed,
-            progress, n_ensembles, init_scale, moves, criteria,
-        )  # fmt: skip
     else:
-        raise InputError(f"sampler: got {sampler!r}, expected 'emcee' or 'lockstep'", value=sampler)
-    if post.problems and on_fail != "ignore":
+        post = _sample_emcee(log_prob, x0, names, cov0, args, opts)
+    if post.problems and opts.on_fail != "ignore":
         msg = "MCMC run has not converged:\n  " + "\n  ".join(post.problems)
-        if on_fail == "raise":
+        if opts.on_fail == "raise":
             raise ConvergenceError(msg, posterior=post)
         warnings.warn(msg, ConvergenceWarning, stacklevel=2)
     return post
 
 
-def _sample_emcee(log_prob, x0, names, cov0, args, nwalkers, nsteps, burn, thin_spec, thin,
-                  seed, progress, n_ensembles, init_scale, moves, criteria):  # fmt: skip
-    """`sample_posterior` with emcee: the `Posterior` of the checked settings."""
+def _sample_emcee(log_prob, x0, names, cov0, args, opts: SamplerOptions):
+    """`sample_posterior` with emcee: the `Posterior` of the checked settings `opts`."""
     vec = _vectorised(log_prob)
 
     def f(p):
         v = np.asarray(vec(jnp.asarray(p), args), dtype=float)
         return np.where(np.isnan(v), -np.inf, v)
 
-    starts = _starts(f, log_prob, x0, args, cov0, nwalkers, n_ensembles, seed, init_scale)
-    kept, lps, acc, wall = _run_emcee(f, starts, x0.size, nsteps, burn, thin, moves, bool(progress))
-    if callable(progress):
-        progress("posterior diagnostics: autocorrelation times, ESS and R-hat per parameter")
+    starts = _starts(f, log_prob, x0, args, cov0, opts.nwalkers, opts.n_ensembles, opts.seed,
+                     opts.init_scale)  # fmt: skip
+    kept, lps, acc, wall = _run_emcee(f, starts, x0.size, opts.nsteps, opts.burn, opts.run_thin,
+                                      opts.moves, bool(opts.progress))  # fmt: skip
+    if callable(opts.progress):
+        opts.progress("posterior diagnostics: autocorrelation times, ESS and R-hat per parameter")
     kept, lps, thin, tau, tau_max, reliable, ess, rhat = diagnose(
-        np.stack(kept), np.stack(lps), thin, thin_spec, criteria["tau_factor"]
+        np.stack(kept), np.stack(lps), opts.run_thin, opts.thin, opts.tau_factor
     )  # kept: (K, S, W, d)
-    problems = _problems(
-        names, tau_max, reliable, ess, rhat, kept.shape[1], nsteps=nsteps, burn=burn, thin=thin,
-        nwalkers=nwalkers, n_ensembles=n_ensembles, **criteria,
-    )  # fmt: skip
+    problems = _problems(names, (tau_max, reliable, ess, rhat), kept.shape[1], opts, thin=thin)
     return make_posterior(
-        names, kept, lps, np.concatenate(acc), (tau, reliable, ess, rhat), problems,
-        nsteps=nsteps, burn=burn, thin=thin, wall_time=wall, criteria=dict(criteria),
-        sampler=f"emcee {emcee_module().__version__}",
+        names, (kept, lps, np.concatenate(acc)), (tau, reliable, ess, rhat), problems, opts,
+        thin=thin, wall_time=wall, sampler=f"emcee {emcee_module().__version__}",
     )  # fmt: skip
 
 
-def _checked_run(x0, names, on_fail, nwalkers, nsteps, burn, thin, n_ensembles, moves):
-    """`sample_posterior`'s checked settings: `x0` as a vector, `names` as a tuple,
-    `nwalkers` and `burn` with their defaults, the thinning asked for and the
-    thinning of the run, `moves`."""
+def _checked_run(x0, names, options: SamplerOptions):
+    """`sample_posterior`'s checked settings: `x0` as a vector, `names` as a tuple, and
+    the options for its dimension (`SamplerOptions.for_dim`)."""
     x0 = np.atleast_1d(np.asarray(x0, dtype=float))
     if x0.ndim != 1 or not np.all(np.isfinite(x0)):
         raise InputError(f"x0: expected a finite vector, got {x0!r}")
@@ -182,24 +135,10 @@ def _checked_run(x0, names, on_fail, nwalkers, nsteps, burn, thin, n_ensembles, 
     names = tuple(str(n) for n in names)
     if len(names) != ndim:
         raise InputError(f"names: got {len(names)} names for {ndim} parameters", value=names)
-    if on_fail not in ("warn", "raise", "ignore"):
-        raise InputError(f"on_fail: got {on_fail!r}, expected 'warn', 'raise' or 'ignore'")
-    if nwalkers is None:
-        nwalkers = max(64, 4 * ndim)
-        nwalkers += nwalkers % 2
-    burn = nsteps // 4 if burn is None else int(burn)
-    thin_spec = check_thin(thin)
-    thin = 1 if thin_spec == "auto" else thin_spec
-    if nwalkers < 2 * ndim:
-        raise InputError(f"nwalkers: got {nwalkers}, expected >= 2 * dim = {2 * ndim}")
-    if not (0 <= burn < nsteps) or thin < 1 or (nsteps - burn) // thin < 8:
-        raise InputError(
-            f"nsteps={nsteps}, burn={burn}, thin={thin}: expected 0 <= burn < nsteps, thin >= 1 "
-            "and at least 8 kept steps"
-        )
-    if n_ensembles < 1:
-        raise InputError(f"n_ensembles: got {n_ensembles}, expected >= 1")
-    return x0, names, nwalkers, burn, thin_spec, thin, check_moves(moves)
+    opts = options.for_dim(ndim)
+    if opts.nwalkers < 2 * ndim:
+        raise InputError(f"nwalkers: got {opts.nwalkers}, expected >= 2 * dim = {2 * ndim}")
+    return x0, names, opts
 
 
 def _starts(f, log_prob, x0, args, cov0, nwalkers, n_ensembles, seed, init_scale):
