@@ -43,16 +43,17 @@ AGREE_Z = 4.0
 
 def _posterior():
     """The demo part's profile posterior (bayes_study's model), JAX and NumPy forms."""
-    from piecs_bayes.fit import profile_log_posterior
+    from piecs_bayes.fit import BayesOptions, profile_log_posterior
 
     study = load_study(DEMO)
     probe = load_probe_data(study)
     fit = fit_study(study, probe)
     use = inliers(fit, probe)
     log_prob, lay, priors = profile_log_posterior(
-        study.profile, use.feature, sources=dict(study.sources),
-        ball_radius=study.probe.ball_radius, transform=study.transform,
-        sigma=study.probe.repeatability, with_approach=use.approach is not None,
+        study.profile, use.feature, options=BayesOptions(
+            sources=dict(study.sources), ball_radius=study.probe.ball_radius,
+            transform=study.transform, sigma=study.probe.repeatability,
+        ), with_approach=use.approach is not None,
     )  # fmt: skip
     args = (jnp.asarray(use.points), None if use.approach is None else jnp.asarray(use.approach))
     x0 = np.zeros(len(lay.names))
@@ -192,7 +193,7 @@ def agreement(a: Run, b: Run) -> tuple[float, float, float, float]:
 def section_cd(args):
     import emcee
 
-    from piecs_bayes.fit import sample_posteriors
+    from piecs_bayes.fit import SamplerOptions, sample_posteriors
     from piecs_bayes.fit.mcmc._core import _neg_hessian, sqrt_psd
     from piecs_bayes.fit.mcmc._lockstep import _parts_walkers
     from piecs_bayes.fit.mcmc._moves import emcee_moves
@@ -245,8 +246,9 @@ def section_cd(args):
         xs = np.repeat(x0[None], n_parts, axis=0)
         a = jax.tree_util.tree_map(lambda z, n=n_parts: jnp.repeat(z[None], n, axis=0), pargs)
         cov0 = np.repeat(cov[None], n_parts, 0)
-        kw = dict(names=names, args=a, nwalkers=nw, nsteps=nsteps, n_ensembles=1, cov0=cov0,
-                  progress=False, on_fail="ignore", moves="de", backend=backend)  # fmt: skip
+        opts = SamplerOptions(nwalkers=nw, nsteps=nsteps, n_ensembles=1, progress=False,
+                              on_fail="ignore", moves="de")  # fmt: skip
+        kw = dict(names=names, args=a, cov0=cov0, options=opts, backend=backend)
         t0 = time.perf_counter()
         _parts_walkers(log_prob)(jnp.asarray(np.repeat(xs[:, None], nw // 2, 1)), a)  # compile
         if backend == "jax":  # compile the chain (the same shapes as the timed run)

@@ -45,10 +45,12 @@ CLI = [sys.executable, "-m", "piecs_bayes.cli"]
 
 
 def section_a(args) -> dict:
+    from dataclasses import replace
+
     import numpy as np
     from bench_scale import scipy_part
 
-    from piecs_bayes.fit import fit_profile, fit_profiles, to_part_frame
+    from piecs_bayes.fit import BatchOptions, fit_profile, fit_profiles, to_part_frame
     from piecs_bayes.io import load_study
     from piecs_bayes.jobs import fit_options, fit_study, load_probe_data, robust_scale
 
@@ -58,6 +60,7 @@ def section_a(args) -> dict:
     centres = to_part_frame(study.transform, probe.points)
     rb, scale = study.probe.ball_radius, robust_scale(study)
     opts = fit_options(study, "robust")
+    loop_opts = replace(opts, solver="lm")
     parts = np.full(len(probe), probe.parts[0])
     contenders = {
         "scipy least_squares loop, analytic Jacobian (trf, huber)": lambda: scipy_part(
@@ -67,10 +70,22 @@ def section_a(args) -> dict:
             study, probe
         ),
         "piecs_bayes fit_profile, per-feature loop (before)": lambda: fit_profile(
-            study.profile, probe.feature, centres, **opts, lines=probe.lines, solver="lm"
+            study.profile,
+            probe.feature,
+            centres,
+            ball_radius=rb,
+            options=loop_opts,
+            lines=probe.lines,
         ),
         "piecs_bayes fit_profiles, one part (batch_size=8)": lambda: fit_profiles(
-            study.profile, parts, probe.feature, centres, **opts, lines=probe.lines, batch_size=8
+            study.profile,
+            parts,
+            probe.feature,
+            centres,
+            ball_radius=rb,
+            options=opts,
+            batch=BatchOptions(batch_size=8),
+            lines=probe.lines,
         ),
     }
     first = {}
@@ -94,7 +109,9 @@ def section_a(args) -> dict:
     print(table(rows, ["per part (7 features, 54 points)", "min", "median", "speed (min)",
                         "speed (median)"]))  # fmt: skip
     fit = fit_study(study, probe)
-    loop = fit_profile(study.profile, probe.feature, centres, **opts, lines=probe.lines)
+    loop = fit_profile(
+        study.profile, probe.feature, centres, ball_radius=rb, options=loop_opts, lines=probe.lines
+    )
     ref = scipy_part(study.profile, probe.feature, centres, rb, scale)
     d_loop = max(float(np.max(np.abs(fit[k].values - loop[k].values))) for k in fit.fits)
     d_se = max(float(np.max(np.abs(fit[k].std_errors / loop[k].std_errors - 1))) for k in fit.fits)

@@ -71,7 +71,8 @@ def main() -> None:
     t_sim = (time.perf_counter() - t0) / args.loops
     t0 = time.perf_counter()
     batch = fit_profiles(study.profile, np.concatenate(parts), np.concatenate(feats),
-                         np.concatenate(pts), **fit_options(study, "robust"))  # fmt: skip
+                         np.concatenate(pts), ball_radius=study.probe.ball_radius,
+                         options=fit_options(study, "robust"))  # fmt: skip
     t_fit = (time.perf_counter() - t0) / args.loops
     sources = {"ball_radius": u_ball}
     hits, total = {}, {}

@@ -40,6 +40,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
@@ -53,7 +54,16 @@ from _common import load, machine_line, simulate_fleet, timeit  # noqa: E402
 from _fmt import ms, table  # noqa: E402
 
 import piecs_bayes  # noqa: E402,F401
-from piecs_bayes.fit import fit_profile, fit_profiles, to_part_frame  # noqa: E402
+from piecs_bayes.fit import (  # noqa: E402
+    BatchOptions,
+    FitOptions,
+    fit_profile,
+    fit_profiles,
+    to_part_frame,
+)
+
+#: the fleet's robust fit (Huber, the demo probe's 1.5 um repeatability)
+ROBUST = FitOptions(method="robust", loss="huber", scale=1.345 * 0.0015)
 from piecs_bayes.io import load_study  # noqa: E402
 from piecs_bayes.jobs import fit_study, load_probe_data, robust_scale  # noqa: E402
 from piecs_bayes.simulate import DEMO_TRANSFORM  # noqa: E402
@@ -126,11 +136,13 @@ def section_a(args):
     probe = load_probe_data(study)
     centres = to_part_frame(study.transform, probe.points)
     rb, scale = study.probe.ball_radius, robust_scale(study)
-    kw = dict(ball_radius=rb, method="robust", loss="huber", scale=scale, lines=probe.lines)
+    kw = dict(ball_radius=rb, options=FitOptions(method="robust", loss="huber", scale=scale),
+              lines=probe.lines)  # fmt: skip
     parts = np.full(len(probe), "part01")
 
     def ours_batch():
-        return fit_profiles(study.profile, parts, probe.feature, centres, batch_size=8, **kw)
+        return fit_profiles(study.profile, parts, probe.feature, centres,
+                            batch=BatchOptions(batch_size=8), **kw)  # fmt: skip
 
     t0 = time.perf_counter()
     fit = fit_study(study, probe)
@@ -176,7 +188,7 @@ def _child_b(n_parts: int) -> dict:
     fleet = simulate_fleet(n_parts, seed=1)
     centres = to_part_frame(DEMO_TRANSFORM, fleet["points"])
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
+    kw = dict(ball_radius=1.0, options=ROBUST)
     warm = np.isin(fleet["part"], np.unique(fleet["part"])[:256])
     # first run: compiles everything it meets (the kernel, and the engine's LM for the
     # retries of the problems the kernel did not solve); the second is timed
@@ -193,11 +205,12 @@ def _child_b(n_parts: int) -> dict:
     t_char = time.perf_counter() - t0
     lm_n = min(n_parts, 1000)
     lm_sel = np.isin(fleet["part"], np.unique(fleet["part"])[:lm_n])
+    lm = dict(kw, options=replace(ROBUST, solver="lm"))
     fit_profiles(fleet["profile"], fleet["part"][warm], fleet["feature"][warm], centres[warm],
-                 solver="lm", **kw)  # fmt: skip
+                 **lm)  # fmt: skip
     t0 = time.perf_counter()
     fit_profiles(fleet["profile"], fleet["part"][lm_sel], fleet["feature"][lm_sel],
-                 centres[lm_sel], solver="lm", **kw)  # fmt: skip
+                 centres[lm_sel], **lm)  # fmt: skip
     t_lm = (time.perf_counter() - t0) * n_parts / lm_n
     lines = [f for f in batch.feature_ids if batch.profile[f].kind == "line"]
     err = np.concatenate([np.abs(batch.values(f) - fleet["truth"][f])[:, 0] for f in lines])
@@ -223,7 +236,7 @@ def _child_b_stream(n_parts: int, chunk: int = 10_000) -> dict:
     values kept; reports the time and the peak RSS."""
     from piecs_bayes.uncertainty import characteristic_arrays
 
-    kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
+    kw = dict(ball_radius=1.0, options=ROBUST)
     values, t_fit, t0_all = [], 0.0, time.perf_counter()
     for k, lo in enumerate(range(0, n_parts, chunk)):
         fleet = simulate_fleet(min(chunk, n_parts - lo), seed=100 + k)
@@ -260,7 +273,7 @@ def section_b(args):
         m = fleet["part"] == p
         ref[p] = scipy_part(fleet["profile"], fleet["feature"][m], centres[m], 1.0, 1.345 * 0.0015)
     t_sp = (time.perf_counter() - t0) / args.scipy_sample
-    kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
+    kw = dict(ball_radius=1.0, options=ROBUST)
     batch = fit_profiles(fleet["profile"], fleet["part"], fleet["feature"], centres, **kw)
     diff = max(
         float(np.max(np.abs(batch.values(f)[batch.parts.index(p)] - v)))
@@ -367,7 +380,7 @@ def section_e(args):
 
 def section_f(args):
     print(f"\n## (f) How the batch fit's cost grows\n\n{load()}\n")
-    kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
+    kw = dict(ball_radius=1.0, options=ROBUST)
     n_ref = 256 if args.quick else 1024
     by_points = _pointstable(args, kw)
     sizes = (10, 100, 1000) if args.quick else (10, 100, 1000, 10000)
@@ -455,8 +468,8 @@ def _per_part(sample, fleet, c, kw):
     """The per-part path on each part of `sample` (one compiled call per part)."""
     for p in sample:
         m = fleet["part"] == p
-        fit_profile(fleet["profile"], fleet["feature"][m], c[m], **kw, declared=0.0015,
-                    solver="auto")  # fmt: skip
+        fit_profile(fleet["profile"], fleet["feature"][m], c[m], ball_radius=kw["ball_radius"],
+                    options=replace(kw["options"], declared=0.0015, solver="auto"))  # fmt: skip
 
 
 def _plot(path, by_points, by_parts, n_ref):

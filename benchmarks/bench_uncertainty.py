@@ -31,7 +31,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from piecs_bayes.fit import gaussian_loglik, sample_posterior  # noqa: E402
+from piecs_bayes.fit import SamplerOptions, gaussian_loglik, sample_posterior  # noqa: E402
 from piecs_bayes.uncertainty import (  # noqa: E402
     bands_from_samples,
     bands_linear,
@@ -104,8 +104,8 @@ def sampler() -> None:
     print(f"| closed form t_65 | {t.mean():.4f} | {t.std():.4f} | [{lo:.4f}, {hi:.4f}] |||||")
     for nw, ns in [(32, 3000), (64, 3000), (128, 3000)]:
         p = sample_posterior(
-            _newcomb_logpost, x0, names=("mu", "log_sigma"), args=yj, nwalkers=nw,
-            nsteps=ns, burn=500, seed=1, progress=False,
+            _newcomb_logpost, x0, names=("mu", "log_sigma"), args=yj,
+            options=SamplerOptions(nwalkers=nw, nsteps=ns, burn=500, seed=1, progress=False),
         )  # fmt: skip
         lo, hi = p.interval()
         print(

@@ -21,7 +21,7 @@ TESTS = Path(__file__).resolve().parents[1] / "tests"
 sys.path.insert(0, str(TESTS))
 
 from helpers import STRD_DIR, STRD_MODELS, fit_strd, read_strd  # noqa: E402
-from test_strd import EXPECTED_FAILURES, MAX_STEPS, _digits  # noqa: E402
+from test_strd import EXPECTED_FAILURES, SOLVER, _digits  # noqa: E402
 
 import piecs_bayes  # noqa: E402,F401  (float64)
 
@@ -31,11 +31,11 @@ def rows():
         prob = read_strd(STRD_DIR / f"{name}.dat")
         for k, start in ((1, prob.start1), (2, prob.start2)):
             t0 = time.perf_counter()
-            res = fit_strd(prob, start, max_steps=MAX_STEPS)
+            res = fit_strd(prob, start, solver=SOLVER)
             yield name, k, "", res, _digits(res, prob), time.perf_counter() - t0
             if (name, k) in EXPECTED_FAILURES:
                 kw = EXPECTED_FAILURES[(name, k)]
-                res = fit_strd(prob, start, max_steps=MAX_STEPS, **kw)
+                res = fit_strd(prob, start, solver=SOLVER, **kw)
                 note = ", ".join(f"{a}={v!r}" for a, v in kw.items())
                 yield name, k, note, res, _digits(res, prob), 0.0
 

@@ -13,7 +13,15 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.fit import Status, fit_profiles, sample_posterior, sample_posteriors, to_part_frame
+from piecs_bayes.fit import (
+    FitOptions,
+    SamplerOptions,
+    Status,
+    fit_profiles,
+    sample_posterior,
+    sample_posteriors,
+    to_part_frame,
+)
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import (
     fit_study,
@@ -103,10 +111,11 @@ def test_densely_probed_features_equal_the_loop():
 
     fleet = simulate_fleet(3, seed=5, points=40)
     c = to_part_frame(DEMO_TRANSFORM, fleet["points"])
-    kw = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
+    opts = FitOptions(method="robust", loss="huber", scale=1.345 * 0.0015)
+    kw = dict(ball_radius=1.0, options=opts)
     args = (fleet["profile"], fleet["part"], fleet["feature"], c)
     first, batch = (fit_profiles(*args, **kw) for _ in range(2))
-    fast = fit_profiles(*args, solver="fast", **kw)
+    fast = fit_profiles(*args, ball_radius=1.0, options=replace(opts, solver="fast"))
     assert batch.ok.all() and fast.ok.all()
     assert {g.n_pad for g in batch.groups} == {64}
     for f in fleet["profile"]:
@@ -153,8 +162,9 @@ def test_failures_are_reported_with_the_loops_message(study_probe):
     part = probe.part[on]
     bad = np.flatnonzero(part == "part07")[2]
     pts[bad] = np.nan
-    kw = dict(ball_radius=study.probe.ball_radius, loss="huber", scale=robust_scale(study))
-    batch = fit_profiles(study.profile, part, probe.feature[on], pts, method="robust", **kw)
+    opts = FitOptions(method="robust", loss="huber", scale=robust_scale(study))
+    kw = dict(ball_radius=study.probe.ball_radius, options=opts)
+    batch = fit_profiles(study.profile, part, probe.feature[on], pts, **kw)
     i7 = batch.parts.index("part07")
     assert batch.failures == [("part07", "dia_24", Status.NONFINITE)]
     assert batch.ok.tolist() == [i != i7 for i in range(12)]
@@ -163,7 +173,7 @@ def test_failures_are_reported_with_the_loops_message(study_probe):
     with pytest.raises(AnalysisError) as exc:
         from piecs_bayes.fit import fit_profile
 
-        fit_profile(study.profile, probe.feature[on][mask], pts[mask], method="robust", **kw)
+        fit_profile(study.profile, probe.feature[on][mask], pts[mask], **kw)
     assert batch.part_error("part07") == str(exc.value)
     assert "1 failed" in repr(batch) and "NONFINITE" in repr(batch)
 
@@ -199,8 +209,10 @@ def test_lockstep_ensembles_sample_each_parts_posterior_like_emcee(backend):
     mus = rng.normal(size=(3, 2))
     base = np.array([[1.0, 0.0], [0.95, 0.3]])
     chols = np.stack([base * (1.0 + 0.5 * k) for k in range(3)])
-    kw = dict(names="ab", nwalkers=32, nsteps=1500, progress=False, on_fail="ignore")
-    posts = sample_posteriors(_gauss, mus, args=(mus, chols), seed=1, backend=backend, **kw)
+    opts = SamplerOptions(nwalkers=32, nsteps=1500, progress=False, on_fail="ignore")
+    kw = dict(names="ab", options=opts)
+    posts = sample_posteriors(_gauss, mus, args=(mus, chols), names="ab",
+                              options=replace(opts, seed=1), backend=backend)  # fmt: skip
     ref = sample_posterior(_gauss, mus[2], args=(jnp.asarray(mus[2]), jnp.asarray(chols[2])), **kw)
     for k, post in enumerate(posts):
         sd = np.sqrt(np.diag(chols[k] @ chols[k].T))
@@ -218,7 +230,8 @@ def test_lockstep_ensembles_sample_each_parts_posterior_like_emcee(backend):
     assert abs(posts[2].acceptance_fraction.mean() - ref.acceptance_fraction.mean()) < 0.03
     np.testing.assert_allclose(posts[2].tau, ref.tau, rtol=0.35)
     if backend == "numpy":  # the DE moves (one more compilation of the jax chain: skipped)
-        de = sample_posteriors(_gauss, mus, args=(mus, chols), moves="de", backend=backend, **kw)
+        de = sample_posteriors(_gauss, mus, args=(mus, chols), names="ab",
+                               options=replace(opts, moves="de"), backend=backend)  # fmt: skip
         for k, post in enumerate(de):
             assert np.all(np.abs(post.mean - mus[k]) < 5 * post.mcse)
     with pytest.raises(InputError, match="leading axis of 3 parts"):

@@ -5,18 +5,20 @@ numbers as the per-part loop, and the truth within the stated uncertainty.
 """
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from piecs_bayes.fit import fit_profile, fit_profiles, to_part_frame
+from piecs_bayes.fit import FitOptions, fit_profile, fit_profiles, to_part_frame
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
 N_POINTS = 512
 FEATURES = ("dia_30", "fillet")  # a line and an arc
-KW = dict(ball_radius=1.0, method="robust", loss="huber", scale=1.345 * 0.0015)
+OPTS = FitOptions(method="robust", loss="huber", scale=1.345 * 0.0015)
+KW = dict(ball_radius=1.0, options=OPTS)
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +48,8 @@ def test_dense_features_are_fitted_by_the_kernel(dense):
     assert {g.n_pad for g in batch.groups} == {N_POINTS}
     # no Levenberg-Marquardt: "fast" (the kernel alone, no retry) gives the same
     # numbers, in a few Newton steps per stage (LM takes ~125 in all)
-    fast = fit_profiles(fleet["profile"], fleet["part"], fleet["feature"], c, solver="fast", **KW)
+    fast = fit_profiles(fleet["profile"], fleet["part"], fleet["feature"], c, ball_radius=1.0,
+                        options=replace(OPTS, solver="fast"))  # fmt: skip
     for fid in FEATURES:
         np.testing.assert_array_equal(fast.values(fid), batch.values(fid))
         np.testing.assert_array_equal(fast.std_errors(fid), batch.std_errors(fid))

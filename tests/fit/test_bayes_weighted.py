@@ -10,10 +10,17 @@ its inliers alone (that feature then has no parameters).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from piecs_bayes.fit import (
+    BAYES_SAMPLING,
+    BayesOptions,
+    fit_profiles_bayes,
+    profile_log_posterior,
+)
 from piecs_bayes.fit import _bayes_profile as bp
-from piecs_bayes.fit import fit_profiles_bayes, profile_log_posterior
 from piecs_bayes.geometry import MachineTransform
 from piecs_bayes.simulate import (
     DEMO_ERRORS,
@@ -39,8 +46,9 @@ def _sim(n_parts=3, seed=5):
 
 def _model(ids, weighted=False):
     return profile_log_posterior(
-        PROFILE, ids, sources=SOURCES, ball_radius=1.0, transform=MachineTransform(),
-        sigma=0.0015, weighted=weighted,
+        PROFILE, ids, options=BayesOptions(sources=SOURCES, ball_radius=1.0,
+                                           transform=MachineTransform(), sigma=0.0015),
+        weighted=weighted,
     )  # fmt: skip
 
 
@@ -75,8 +83,10 @@ def test_parts_that_flag_other_points_share_one_model():
     starts = {p: {f.id: np.zeros(f.nparams) for f in PROFILE.features} for p in np.unique(part)}
     bp._model.cache_clear()
     posts = fit_profiles_bayes(
-        PROFILE, part, ids, pts, starts=starts, sources=SOURCES, ball_radius=1.0,
-        sigma=0.0015, nsteps=60, n_ensembles=1, progress=False, on_fail="ignore", inlier=keep,
+        PROFILE, part, ids, pts, starts=starts,
+        options=BayesOptions(sources=SOURCES, ball_radius=1.0, sigma=0.0015),
+        sampling=replace(BAYES_SAMPLING, nsteps=60, n_ensembles=1, progress=False,
+                         on_fail="ignore"), inlier=keep,
     )  # fmt: skip
     # one weighted model for parts 0 and 1 (and any part that flags nothing), one of
     # part 2's inliers alone

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.fit import TUNING, fit_feature, fit_profile, fit_profile_joint
+from piecs_bayes.fit import TUNING, FitOptions, fit_feature, fit_profile, fit_profile_joint
 from piecs_bayes.geometry import MachineTransform
 from piecs_bayes.simulate import (
     DEMO_ERRORS,
@@ -33,7 +33,7 @@ def test_joint_fit_recovers_axis_scale_errors_and_deviations():
         ball_radius=1.0,
         transform=DEMO_TRANSFORM,  # the study's transform does not know the scale errors
         free_transform=("scale_x", "scale_z"),
-        fix=("dia_24.offset", "face_end.offset"),
+        options=FitOptions(fix=("dia_24.offset", "face_end.offset")),
     )
     assert fit.transform["scale_x"]["value"] == pytest.approx(40e-6, abs=1e-12)
     assert fit.transform["scale_z"]["value"] == pytest.approx(-25e-6, abs=1e-12)
@@ -68,11 +68,15 @@ def test_fixed_radius_arc():
     sim = simulate_probe(
         PROFILE, {"fillet": truth}, ball_radius=1.0, points={"fillet": 9}, noise_sd=0.0
     )
-    fit = fit_feature(arc, sim["points"], ball_radius=1.0, fix=("radius",))
+    fit = fit_feature(
+        arc, sim["points"], ball_radius=1.0, options=FitOptions(fix={arc.id: ("radius",)})
+    )
     assert np.max(np.abs(fit.values - truth)) < 1e-10
     assert fit.std_errors[2] == 0.0 and fit.fixed == ("radius",)
     with pytest.raises(InputError, match="cannot fix 'diameter'"):
-        fit_feature(arc, sim["points"], ball_radius=1.0, fix=("diameter",))
+        fit_feature(
+            arc, sim["points"], ball_radius=1.0, options=FitOptions(fix={arc.id: ("diameter",)})
+        )
 
 
 def _chipped_part(frac, seed, n=20):
@@ -100,16 +104,18 @@ def _chipped_part(frac, seed, n=20):
 )
 def test_robust_fits_survive_chips_where_plain_least_squares_does_not(frac, loss):
     sim, n_out = _chipped_part(frac, seed=3)
-    plain = fit_profile(PROFILE, sim["feature"], sim["points"], ball_radius=1.0, sigma=SIGMA)
+    plain = fit_profile(
+        PROFILE, sim["feature"], sim["points"], ball_radius=1.0,
+        options=FitOptions(sigma=SIGMA, solver="lm"),
+    )  # fmt: skip
     robust = fit_profile(
         PROFILE,
         sim["feature"],
         sim["points"],
         ball_radius=1.0,
-        method="robust",
-        loss=loss,
-        scale=TUNING[loss] * SIGMA,
-        sigma=SIGMA,
+        options=FitOptions(
+            method="robust", loss=loss, scale=TUNING[loss] * SIGMA, sigma=SIGMA, solver="lm"
+        ),
     )
     z_plain = np.concatenate([(plain[k].values - TRUTH[k]) / plain[k].std_errors for k in TRUTH])
     z_rob = np.concatenate([(robust[k].values - TRUTH[k]) / robust[k].std_errors for k in TRUTH])
@@ -130,8 +136,9 @@ def test_profile_fit_dataframes_are_its_csvs():
 
     sim = simulate_probe(PROFILE, TRUTH, ball_radius=1.0, points=DEMO_POINTS, noise_sd=SIGMA, rng=4)
     fit = fit_profile(
-        PROFILE, sim["feature"], sim["points"], ball_radius=1.0, sigma=SIGMA, part="p1"
-    )
+        PROFILE, sim["feature"], sim["points"], ball_radius=1.0,
+        options=FitOptions(sigma=SIGMA, solver="lm"), part="p1",
+    )  # fmt: skip
     df = fit.to_dataframe()
     pd.testing.assert_frame_equal(df, pd.read_csv(io.StringIO(fit_csv(fit))))
     assert len(df) == sum(f.nparams for f in PROFILE.features)

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import InputError
+from piecs_bayes.fit import BayesOptions
 from piecs_bayes.fit._bayes_profile import _model, _model_key
 from piecs_bayes.fit._inference_data import keep_bits, parameter_locations
 from piecs_bayes.fit.mcmc._posterior import import_arviz
@@ -117,10 +118,11 @@ def test_pointwise_log_likelihood_is_the_model_likelihood_student_t(demo):
     study, bayes, _ = demo
     likelihood = "student_t"
     d = bayes.data
-    key = _model_key(
-        study.profile, d.feature_ids, d.sources, d.ball_radius, d.transform, d.sigma,
-        likelihood, 4.0, d.approach is not None, d.file,
+    options = BayesOptions(
+        sources=d.sources, ball_radius=d.ball_radius, sigma=d.sigma, transform=d.transform,
+        likelihood=likelihood, nu=4.0, file=d.file,
     )  # fmt: skip
+    key = _model_key(study.profile, d.feature_ids, options, d.approach is not None)
     m = _model(*key)
     theta = jnp.asarray(bayes.posterior.samples[7])
     args = (jnp.asarray(d.machine_points), None)

@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from scipy import stats
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.fit import fit_probe_calibration
+from piecs_bayes.fit import CALIBRATION_SAMPLING, CalibrationOptions, fit_probe_calibration
 from piecs_bayes.io import CalibrationArtefact, lobe_basis
 from piecs_bayes.simulate import simulate_calibration
 
@@ -20,8 +21,9 @@ SPHERE = CalibrationArtefact("sphere", 25.0004, 0.0005, 2.0, (0.0, -40.0))
 SIGMA = 0.0015
 
 
-def _fit(sim, **kw):
-    return fit_probe_calibration(SPHERE, sim["points"], sim["approach"], sigma_declared=SIGMA, **kw)
+def _fit(sim, sampling=CALIBRATION_SAMPLING, **kw):
+    return fit_probe_calibration(SPHERE, sim["points"], sim["approach"], sigma_declared=SIGMA,
+                                 options=CalibrationOptions(**kw), sampling=sampling)  # fmt: skip
 
 
 def test_known_lobing_is_found_within_3u():
@@ -86,8 +88,8 @@ def test_the_batch_gauss_newton_is_the_fit():
     y, cov = _gauss_newton(pts, theta, SPHERE.diameter / 2)
     a = np.c_[np.cos(theta), np.sin(theta)]
     for k in range(3):
-        cal = fit_probe_calibration(SPHERE, pts[k], a, orders=(2, 3), sigma_declared=SIGMA,
-                                    loss="linear")  # fmt: skip
+        cal = fit_probe_calibration(SPHERE, pts[k], a, sigma_declared=SIGMA,
+                                    options=CalibrationOptions(orders=(2, 3), loss="linear"))  # fmt: skip
         np.testing.assert_allclose(cal.coefficients, y[k, 2:], rtol=0, atol=1e-10)
         np.testing.assert_allclose(cal.cov, cov[k, 2:, 2:], rtol=1e-6, atol=1e-16)
 
@@ -120,7 +122,8 @@ def test_ring_k0_is_the_closed_form():
     ring = CalibrationArtefact("ring", 50.0012, 0.0008, 2.0, (0.0, 0.0))
     x_plus, x_minus = 25.0006 + 0.003 - 2.9952, -25.0006 + 0.003 + 2.9952 + 0.0007
     cal = fit_probe_calibration(ring, [[x_plus, 5.0], [x_minus, 5.0]], [[1, 0], [-1, 0]],
-                                orders=(), sigma_declared=SIGMA, sigma_known=True)  # fmt: skip
+                                sigma_declared=SIGMA,
+                                options=CalibrationOptions(orders=(), sigma_known=True))  # fmt: skip
     assert abs(cal.r0 - (ring.diameter - (x_plus - x_minus)) / 2) < 1e-9
     assert abs(cal.cov[0, 0] - (SIGMA**2 / 2 + 0.0002**2)) < 1e-15
     # three points a side with noise, the residuals' sigma: the means' closed form
@@ -129,15 +132,15 @@ def test_ring_k0_is_the_closed_form():
     xm = x_minus + rng.normal(0, SIGMA, 3)
     pts = np.c_[np.r_[xp, xm], np.zeros(6)]
     app = np.r_[[[1, 0]] * 3, [[-1, 0]] * 3]
-    cal = fit_probe_calibration(ring, pts, app, orders="auto", sigma_declared=SIGMA,
-                                loss="linear")  # fmt: skip
+    cal = fit_probe_calibration(ring, pts, app, sigma_declared=SIGMA,
+                                options=CalibrationOptions(orders="auto", loss="linear"))  # fmt: skip
     assert cal.orders == () and cal.dof == 4
     assert abs(cal.r0 - (ring.diameter - (xp.mean() - xm.mean())) / 2) < 1e-9
     # a diameter from outside: r0 = ((x_plus - x_minus) - D) / 2
     dia = CalibrationArtefact("diameter", 30.0021, 0.002, 2.0)
     xp, xm = 15.0 + 3.001, -15.002 - 3.001
-    cal = fit_probe_calibration(dia, [[xp, 0], [xm, 0]], [[-1, 0], [1, 0]], orders=(),
-                                sigma_declared=SIGMA, sigma_known=True)  # fmt: skip
+    cal = fit_probe_calibration(dia, [[xp, 0], [xm, 0]], [[-1, 0], [1, 0]], sigma_declared=SIGMA,
+                                options=CalibrationOptions(orders=(), sigma_known=True))  # fmt: skip
     assert abs(cal.r0 - ((xp - xm) - dia.diameter) / 2) < 1e-9
 
 
@@ -149,13 +152,15 @@ def test_ring_with_a_face_pair_averages_the_two_closed_forms():
     xp, xm, zp, zm = 22.0071, -22.0049, -10.0 + 5.0002 + 3.0015, -10.0 - 5.0002 - 2.9992
     pts = [[xp, -10.0], [xm, -10.0], [0.0, zp], [0.0, zm]]
     app = [[1, 0], [-1, 0], [0, -1], [0, 1]]
-    cal = fit_probe_calibration(art, pts, app, orders=(), sigma_declared=SIGMA, sigma_known=True)
+    cal = fit_probe_calibration(art, pts, app, sigma_declared=SIGMA,
+                                options=CalibrationOptions(orders=(), sigma_known=True))  # fmt: skip
     want = 0.5 * ((art.diameter - (xp - xm)) / 2 + ((zp - zm) - art.face_width) / 2)
     assert abs(cal.r0 - want) < 1e-9
     u2 = SIGMA**2 / 4 + (0.0002**2 + 0.00015**2) / 4
     assert abs(cal.cov[0, 0] - u2) < 1e-15
     with pytest.raises(InputError, match="order 2 needs a sphere"):
-        fit_probe_calibration(art, pts, app, orders=(2,), sigma_declared=SIGMA, sigma_known=True)
+        fit_probe_calibration(art, pts, app, sigma_declared=SIGMA,
+                              options=CalibrationOptions(orders=(2,), sigma_known=True))  # fmt: skip
 
 
 def test_orders_the_directions_cannot_separate_are_refused():
@@ -165,13 +170,15 @@ def test_orders_the_directions_cannot_separate_are_refused():
     with pytest.raises(InputError, match=r"order 3 needs approach directions spread over at "
                        r"least 7 distinct angles.*every 45 degrees.*the data have 0, 180 "
                        r"degrees only"):  # fmt: skip
-        fit_probe_calibration(SPHERE, p, a, orders=(2, 3), sigma_declared=SIGMA)
+        fit_probe_calibration(SPHERE, p, a, sigma_declared=SIGMA,
+                              options=CalibrationOptions(orders=(2, 3)))  # fmt: skip
     # a quarter circle: full rank, badly conditioned
     th = np.radians(np.linspace(-45.0, 45.0, 24))
     a = np.c_[np.cos(th), np.sin(th)]
     p = np.array(SPHERE.centre) - (12.5002 + 3.0) * a
     with pytest.raises(InputError, match=r"condition number .* > 100"):
-        fit_probe_calibration(SPHERE, p, a, orders=(2, 3), sigma_declared=SIGMA)
+        fit_probe_calibration(SPHERE, p, a, sigma_declared=SIGMA,
+                              options=CalibrationOptions(orders=(2, 3)))  # fmt: skip
     cal = fit_probe_calibration(SPHERE, p, a, sigma_declared=SIGMA)  # auto steps down
     assert cal.orders in ((), (2,))
 
@@ -179,7 +186,8 @@ def test_orders_the_directions_cannot_separate_are_refused():
 def test_bayes_agrees_with_least_squares():
     sim = simulate_calibration(seed=2)
     lsq = _fit(sim, loss="linear", sigma_known=True)
-    bay = _fit(sim, method="bayes", sigma_known=True, nsteps=4000, seed=1)
+    bay = _fit(sim, method="bayes", sigma_known=True,
+               sampling=replace(CALIBRATION_SAMPLING, nsteps=4000, seed=1))  # fmt: skip
     u = np.sqrt(np.diag(lsq.cov))
     assert np.all(np.abs(bay.coefficients - lsq.coefficients) < 0.1 * u)
     np.testing.assert_allclose(np.sqrt(np.diag(bay.cov)), u, rtol=0.1)

@@ -15,6 +15,7 @@ from piecs_bayes.decide import conformance, decide
 from piecs_bayes.errors import InputError
 from piecs_bayes.export.tables import fit_csv, fit_json
 from piecs_bayes.fit import (
+    FitOptions,
     ScaledInvChi2,
     coverage_factor,
     effective_dof,
@@ -98,16 +99,16 @@ def _sparse_part(seed=1, noise=0.0015):
 
 def test_a_five_point_arc_gets_the_parts_pooled_sigma_not_its_own():
     ids, centres, _ = _sparse_part()
-    fit = fit_profile(PROFILE, ids, centres, ball_radius=1.0, method="robust", scale=1.345 * 0.0015,
-                      declared=0.0015)  # fmt: skip
+    fit = fit_profile(PROFILE, ids, centres, ball_radius=1.0, options=FitOptions(
+        method="robust", scale=1.345 * 0.0015, declared=0.0015, solver="lm"))  # fmt: skip
     s = fit.sigma
     flagged = sum(len(f.outliers) for f in fit)  # robust fits pool their inliers
     assert s.source == "pooled+declared" and s.pooled_dof == 38 - 15 - flagged
     assert s.dof == 8 + s.pooled_dof
     arc = fit["fillet"]
     assert arc.n == 5 and arc.residual_dof == 2
-    unit = fit_feature(arc.feature, centres[ids == "fillet"], ball_radius=1.0, method="robust",
-                       scale=1.345 * 0.0015, sigma=1.0)  # fmt: skip
+    unit = fit_feature(arc.feature, centres[ids == "fillet"], ball_radius=1.0,
+                       options=FitOptions(method="robust", scale=1.345 * 0.0015, sigma=1.0))  # fmt: skip
     np.testing.assert_allclose(arc.covariance, s.value**2 * unit.covariance, rtol=1e-9)
     # the arc's own residual sd is far from sigma with 2 dof; the pooled one is not
     assert abs(s.value / 0.0015 - 1) < 0.35
@@ -115,8 +116,8 @@ def test_a_five_point_arc_gets_the_parts_pooled_sigma_not_its_own():
 
 def test_a_perfect_fit_reports_no_placeholder():
     ids, centres, _ = _sparse_part(noise=0.0)
-    fit = fit_profile(PROFILE, ids, centres, ball_radius=1.0, method="robust", scale=0.002,
-                      declared=0.0015)  # fmt: skip
+    fit = fit_profile(PROFILE, ids, centres, ball_radius=1.0, options=FitOptions(
+        method="robust", scale=0.002, declared=0.0015, solver="lm"))  # fmt: skip
     for f in fit:
         assert f.residual_sd < 1e-9  # was 1.0 (mm!) from the MAD's fallback
         assert f.result.residual_sd < 1e-9
@@ -126,7 +127,7 @@ def test_a_perfect_fit_reports_no_placeholder():
     assert doc["probe_sigma"]["source"] == "pooled+declared" and doc["probe_sigma"]["dof"] == 31
     assert all(f["residual_sd"] < 1e-9 and f["sigma"]["dof"] == 31 for f in doc["features"])
     # without a declared value the data alone speak: (numerically) zero scatter
-    bare = fit_profile(PROFILE, ids, centres, ball_radius=1.0, declared=None)
+    bare = fit_profile(PROFILE, ids, centres, ball_radius=1.0, options=FitOptions(declared=None))
     assert bare.sigma.source == "pooled" and bare.sigma.value < 1e-9
 
 
@@ -136,11 +137,12 @@ def test_batch_fits_apply_the_rule_part_by_part():
             ball_radius=1.0, transform=DEMO_TRANSFORM, points=FEW, noise_sd=0.0015, margin=0.12),
     )  # fmt: skip
     centres = to_part_frame(DEMO_TRANSFORM, sim["points"])
-    kw = dict(ball_radius=1.0, method="robust", scale=1.345 * 0.0015, declared=0.0015)
-    bf = fit_profiles(PROFILE, sim["part"], sim["feature"], centres, **kw)
+    opts = FitOptions(method="robust", scale=1.345 * 0.0015, declared=0.0015)
+    bf = fit_profiles(PROFILE, sim["part"], sim["feature"], centres, ball_radius=1.0, options=opts)
     for i, part in enumerate(bf.parts):
         rows = sim["part"] == part
-        one = fit_profile(PROFILE, sim["feature"][rows], centres[rows], **kw)
+        one = fit_profile(PROFILE, sim["feature"][rows], centres[rows], ball_radius=1.0,
+                          options=dataclasses.replace(opts, solver="lm"))  # fmt: skip
         assert bf.sigma[i] == pytest.approx(one.sigma.value, rel=1e-6)  # solvers agree to ~1e-10 mm
         assert bf.sigma_dof[i] == one.sigma.dof
         np.testing.assert_allclose(bf.covariance("fillet")[i], one["fillet"].covariance, rtol=1e-6)

@@ -12,7 +12,7 @@ import pytest
 
 from piecs_bayes import _config
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.fit import fit_profile, to_part_frame
+from piecs_bayes.fit import FitOptions, fit_profile, to_part_frame
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import fit_options, fit_study, load_probe_data
 
@@ -25,7 +25,8 @@ def _loop(study, probe, method, part=None):
     """The per-feature loop (`fit_profile(solver="lm")`) on the same points."""
     return fit_profile(
         study.profile, probe.feature, to_part_frame(study.transform, probe.points),
-        **fit_options(study, method), lines=probe.lines, file=probe.file,
+        ball_radius=study.probe.ball_radius, options=replace(fit_options(study, method), solver="lm"),
+        lines=probe.lines, file=probe.file,
         part=part if part is not None else probe.parts[0],
     )  # fmt: skip
 
@@ -220,4 +221,5 @@ def test_unknown_solver_is_refused():
     study = load_study(DEMO)
     probe = load_probe_data(study)
     with pytest.raises(InputError, match="unknown solver 'newton'"):
-        fit_profile(study.profile, probe.feature, probe.points, ball_radius=1.0, solver="newton")
+        fit_profile(study.profile, probe.feature, probe.points, ball_radius=1.0,
+                    options=FitOptions(solver="newton"))  # fmt: skip

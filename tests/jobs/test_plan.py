@@ -90,7 +90,7 @@ def test_the_prediction_matches_1000_simulated_parts(study):
     opts = fit_options(study, "robust")
     bf = fit_profiles(
         study.profile, sim["part"], sim["feature"], to_part_frame(study.transform, sim["points"]),
-        **opts,
+        ball_radius=study.probe.ball_radius, options=opts,
     )  # fmt: skip
     for fp in plan.features:
         f = study.profile[fp.feature]

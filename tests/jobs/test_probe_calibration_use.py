@@ -18,7 +18,13 @@ import pytest
 from helpers import lobing_probe
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.fit import CALIBRATION_SOURCE, RadiusComponents, fit_profiles, to_part_frame
+from piecs_bayes.fit import (
+    CALIBRATION_SOURCE,
+    FitOptions,
+    RadiusComponents,
+    fit_profiles,
+    to_part_frame,
+)
 from piecs_bayes.io import approach_angle, load_study
 from piecs_bayes.jobs import (
     CoverageOptions,
@@ -49,7 +55,7 @@ FEW = {"face_end": 3, "dia_24": 8, "taper": 4, "dia_30": 5, "fillet": 5, "should
 def _fit(points, sim, ball_radius):
     bf = fit_profiles(
         PROFILE, sim["part"], sim["feature"], to_part_frame(DEMO_TRANSFORM, points),
-        ball_radius=ball_radius, method="lsq", sigma=SIGMA,
+        ball_radius=ball_radius, options=FitOptions(method="lsq", sigma=SIGMA),
     )  # fmt: skip
     return {f.id: bf.values(f.id)[0] for f in PROFILE.features}
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from piecs_bayes.fit import fit_profile
+from piecs_bayes.fit import FitOptions, fit_profile
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import bayes_study, fit_study, toolpath_uncertainty
 from piecs_bayes.simulate import (
@@ -108,7 +108,8 @@ def test_a_scale_dominated_study_has_wider_bounds_in_the_expected_ratio():
     sim = simulate_probe(
         FULL, TRUTH_ALL, ball_radius=1.0, points=DEMO_POINTS, noise_sd=0.0015, rng=5
     )
-    fit = fit_profile(FULL, sim["feature"], sim["points"], ball_radius=1.0, sigma=0.0015)
+    fit = fit_profile(FULL, sim["feature"], sim["points"], ball_radius=1.0,
+                      options=FitOptions(sigma=0.0015, solver="lm"))  # fmt: skip
     noise = linearised_toolpath(
         FULL, sim["feature"], sim["points"], fit.deviations, sigma=0.0015,
         options=LinearisedOptions(ball_radius=1.0),
@@ -148,7 +149,7 @@ def test_all_points_with_an_inlier_mask_equal_the_inliers_alone():
     keep[[int(np.flatnonzero(sim["feature"] == "dia_30")[3]),
           int(np.flatnonzero(sim["feature"] == "fillet")[2])]] = False  # fmt: skip
     fit = fit_profile(FULL, sim["feature"][keep], sim["points"][keep], ball_radius=1.0,
-                      sigma=0.0015)  # fmt: skip
+                      options=FitOptions(sigma=0.0015, solver="lm"))  # fmt: skip
     opts = LinearisedOptions(ball_radius=1.0, source_sd={"x_centre": 0.001}, band_sims=2**12)
     kw = dict(sigma=0.0015, dof=30.0, options=opts)
     a = linearised_toolpath(FULL, sim["feature"][keep], sim["points"][keep], fit.deviations, **kw)

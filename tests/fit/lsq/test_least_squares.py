@@ -13,7 +13,7 @@ import pytest
 import scipy.optimize
 
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.fit import LsqResult, Status, least_squares, solve_arrays
+from piecs_bayes.fit import LsqResult, SolverOptions, Status, least_squares, solve_arrays
 
 # --------------------------------------------------------------------------- #
 # shared problems (module-level functions: one compile per shape)
@@ -110,7 +110,9 @@ def test_weights_and_zero_weight_exclusion():
 def test_solvers_agree_with_lm(solver):
     data = tuple(map(jnp.asarray, _exp_data(2)))
     ref = least_squares(exp_residuals, jnp.array([1.0, 1.0, 0.0]), data)
-    res = least_squares(exp_residuals, jnp.array([1.0, 1.0, 0.0]), data, solver=solver)
+    res = least_squares(
+        exp_residuals, jnp.array([1.0, 1.0, 0.0]), data, solver=SolverOptions(solver)
+    )
     assert res.converged
     assert np.allclose(res.params_flat, ref.params_flat, rtol=1e-8)
     assert np.allclose(res.covariance, ref.covariance, rtol=1e-6)
@@ -146,7 +148,7 @@ def test_unknown_names_are_value_errors():
     with pytest.raises(ValueError, match=r"unknown loss 'l2'; expected one of"):
         least_squares(poly_flat, jnp.zeros(3), y, loss="l2")
     with pytest.raises(ValueError, match=r"unknown solver 'bfgs'.*'lm'"):
-        least_squares(poly_flat, jnp.zeros(3), y, solver="bfgs")
+        least_squares(poly_flat, jnp.zeros(3), y, solver=SolverOptions("bfgs"))
     with pytest.raises(ValueError, match="unknown x_scale"):
         least_squares(poly_flat, jnp.zeros(3), y, x_scale="auto")
 
@@ -158,11 +160,13 @@ def test_unknown_names_are_value_errors():
         ({"weights": -np.ones(20)}, "non-negative"),
         ({"scale": 0.0}, "scale must be a positive"),
         ({"sigma": -1.0}, "sigma must be a positive"),
-        ({"max_steps": 0}, "max_steps"),
+        ({"solver": {"max_steps": 0}}, "max_steps"),
     ],
 )
 def test_bad_arguments(kwargs, match):
     with pytest.raises(InputError, match=match):
+        if "solver" in kwargs:  # refused when the SolverOptions is made
+            kwargs = {"solver": SolverOptions(**kwargs["solver"])}
         least_squares(poly_flat, jnp.zeros(3), jnp.asarray(_poly_data()), **kwargs)
 
 
@@ -175,8 +179,8 @@ def test_failure_is_reported_never_silent():
     data = tuple(map(jnp.asarray, _exp_data(4)))
     y0 = jnp.array([10.0, 5.0, -3.0])
     with pytest.raises(AnalysisError, match="maximum number of steps"):
-        least_squares(exp_residuals, y0, data, max_steps=3)
-    res = least_squares(exp_residuals, y0, data, max_steps=3, throw=False)
+        least_squares(exp_residuals, y0, data, solver=SolverOptions(max_steps=3))
+    res = least_squares(exp_residuals, y0, data, solver=SolverOptions(max_steps=3), throw=False)
     assert res.status is Status.MAX_STEPS_REACHED and not res.converged
     assert res.message == Status.MAX_STEPS_REACHED.message and "max_steps" in res.message
     assert not res.covariance_accurate

@@ -18,9 +18,10 @@ import numpy as np
 import pytest
 from helpers import STRD_MODELS, fit_strd, matching_digits, read_strd
 
-from piecs_bayes.fit import Status
+from piecs_bayes.fit import SolverOptions, Status
 
 MAX_STEPS = 2000  # Bennett5 from start 2 needs ~1300 LM steps
+SOLVER = SolverOptions(max_steps=MAX_STEPS)
 
 #: (data set, start) that plain LM does not solve within MAX_STEPS, and the
 #: keyword arguments that do solve it
@@ -65,13 +66,13 @@ def test_strd(name, reference_dir):
     assert len(prob.start1) == len(prob.certified)
     for k, start in ((1, prob.start1), (2, prob.start2)):
         label = f"{name} start {k}"
-        res = fit_strd(prob, start, max_steps=MAX_STEPS)
+        res = fit_strd(prob, start, solver=SOLVER)
         if (name, k) in EXPECTED_FAILURES:
             # the failure is reported, not dressed up as an answer ...
             assert res.status is not Status.SUCCESSFUL, label
             assert not res.converged
             # ... and the documented setting solves it
-            res = fit_strd(prob, start, max_steps=MAX_STEPS, **EXPECTED_FAILURES[(name, k)])
+            res = fit_strd(prob, start, solver=SOLVER, **EXPECTED_FAILURES[(name, k)])
         _assert_certified(res, prob, label)
 
 
@@ -82,14 +83,14 @@ def test_failed_start_raises_with_throw(reference_dir):
 
     prob = read_strd(reference_dir / "strd" / "MGH10.dat")
     with pytest.raises(AnalysisError, match="maximum number of steps"):
-        fit_strd(prob, prob.start1, max_steps=MAX_STEPS, throw=True)
+        fit_strd(prob, prob.start1, solver=SOLVER, throw=True)
 
 
 def test_precision_limited_params_still_certified(reference_dir):
     """Lanczos1's parameters are checked to the full 6 digits (only RSS and standard
     errors are float64-limited)."""
     prob = read_strd(reference_dir / "strd" / "Lanczos1.dat")
-    res = fit_strd(prob, prob.start2, max_steps=MAX_STEPS)
+    res = fit_strd(prob, prob.start2, solver=SOLVER)
     assert res.status is Status.SUCCESSFUL
     assert _digits(res, prob)["params"] >= 6
     assert np.isclose(res.rss, prob.rss, rtol=0.05)

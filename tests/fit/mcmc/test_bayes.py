@@ -16,6 +16,7 @@ import functools
 import math
 import re
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -30,6 +31,7 @@ from piecs_bayes.fit import (
     HalfNormal,
     LogNormal,
     Normal,
+    SamplerOptions,
     StudentT,
     Uniform,
     gaussian_loglik,
@@ -40,6 +42,7 @@ from piecs_bayes.fit import (
 )
 
 K_SE = 4.0  # allowed multiples of the Monte Carlo standard error
+QUIET = SamplerOptions(progress=False)
 
 
 def _newcomb_header(text: str) -> dict[str, float]:
@@ -71,7 +74,7 @@ def _run_newcomb(path: str):
     x0 = np.array([y.mean(), math.log(y.std())])
     post = sample_posterior(
         _newcomb_logpost, x0, names=("mu", "log_sigma"), args=jnp.asarray(y),
-        nwalkers=32, nsteps=3000, burn=500, seed=1, progress=False,
+        options=SamplerOptions(nwalkers=32, nsteps=3000, burn=500, seed=1, progress=False),
     )  # fmt: skip
     return y, _newcomb_header(text), post
 
@@ -177,7 +180,8 @@ def test_arviz_computes_the_reported_rhat_and_ess_from_the_stored_chains(sampler
     from piecs_bayes.fit.mcmc._posterior import import_arviz as _import_arviz
 
     az = _import_arviz()
-    kw = dict(names=("a", "b"), nwalkers=16, nsteps=1500, seed=4, progress=False)
+    kw = dict(names=("a", "b"), options=SamplerOptions(nwalkers=16, nsteps=1500, seed=4,
+                                                        progress=False))  # fmt: skip
     x0 = np.array([0.3, -1.0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
@@ -260,7 +264,7 @@ def test_conjugate_normal_linear_model():
 
     post = sample_posterior(
         log_post, mean_n, names=("b0", "b1", "b2"), args=(jnp.asarray(x), jnp.asarray(y)),
-        nwalkers=32, nsteps=4000, burn=500, seed=3, progress=False,
+        options=SamplerOptions(nwalkers=32, nsteps=4000, burn=500, seed=3, progress=False),
     )  # fmt: skip
     # 3,500 kept steps: 50 tau holds up to tau = 70 (42 seen on another instruction
     # set, where 2,500 steps did not converge: the verdict must not hang on the path)
@@ -294,8 +298,8 @@ SAMPLERS = ["emcee", "lockstep"]  # sample_posterior's two samplers
 def test_short_run_warns_with_advice(sampler):
     with pytest.warns(ConvergenceWarning) as rec:
         post = sample_posterior(
-            _toy, np.zeros(2), names=("a", "b"), nsteps=40, seed=0, progress=False, min_ess=1e6,
-            sampler=sampler,
+            _toy, np.zeros(2), names=("a", "b"), options=SamplerOptions(
+                nsteps=40, seed=0, progress=False, min_ess=1e6, sampler=sampler),
         )  # fmt: skip
     msg = str(rec[0].message)
     assert "not converged" in msg
@@ -311,8 +315,8 @@ def test_short_run_warns_with_advice(sampler):
 def test_short_run_can_raise(sampler):
     with pytest.raises(ConvergenceError, match="increase nsteps") as err:
         sample_posterior(
-            _toy, np.zeros(2), names=("a", "b"), nsteps=40, seed=0, progress=False,
-            on_fail="raise", sampler=sampler,
+            _toy, np.zeros(2), names=("a", "b"), options=SamplerOptions(
+                nsteps=40, seed=0, progress=False, on_fail="raise", sampler=sampler),
         )  # fmt: skip
     assert err.value.posterior.names == ("a", "b")  # the Posterior itself, not a list
     assert err.value.posterior.sampler.startswith(
@@ -328,12 +332,13 @@ def test_same_seed_same_chains_and_start_ball_respects_support(sampler):
     def lp(theta, args):
         return prior.log_pdf(theta[0]) - 0.5 * theta[1] ** 2
 
-    kw = dict(names=("s", "m"), cov0=[1.0, 1.0], nsteps=60, progress=False, sampler=sampler)
+    kw = dict(names=("s", "m"), cov0=[1.0, 1.0])
+    opts = SamplerOptions(nsteps=60, progress=False, sampler=sampler)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)  # a 60-step run, on purpose
-        a = sample_posterior(lp, np.array([0.5, 0.0]), seed=5, **kw)
-        b = sample_posterior(lp, np.array([0.5, 0.0]), seed=5, **kw)
-        c = sample_posterior(lp, np.array([0.5, 0.0]), seed=6, **kw)
+        a = sample_posterior(lp, np.array([0.5, 0.0]), options=replace(opts, seed=5), **kw)
+        b = sample_posterior(lp, np.array([0.5, 0.0]), options=replace(opts, seed=5), **kw)
+        c = sample_posterior(lp, np.array([0.5, 0.0]), options=replace(opts, seed=6), **kw)
     assert np.array_equal(a.chains, b.chains) and np.array_equal(a.log_prob, b.log_prob)
     assert not np.array_equal(a.chains, c.chains)
     assert np.all(a.samples[:, 0] >= 0.0)
@@ -341,18 +346,22 @@ def test_same_seed_same_chains_and_start_ball_respects_support(sampler):
 
 def test_bad_arguments_are_named():
     with pytest.raises(InputError, match="names"):
-        sample_posterior(_toy, np.zeros(2), names=("a",), progress=False)
+        sample_posterior(_toy, np.zeros(2), names=("a",), options=QUIET)
     with pytest.raises(InputError, match="nwalkers"):
-        sample_posterior(_toy, np.zeros(3), names="abc", nwalkers=4, progress=False)
+        sample_posterior(_toy, np.zeros(3), names="abc", options=replace(QUIET, nwalkers=4))
     with pytest.raises(InputError, match="cov0"):
-        sample_posterior(_toy, np.zeros(2), names="ab", cov0=np.eye(3), progress=False)
+        sample_posterior(_toy, np.zeros(2), names="ab", cov0=np.eye(3), options=QUIET)
     with pytest.raises(InputError, match="on_fail"):
-        sample_posterior(_toy, np.zeros(2), names="ab", on_fail="maybe", progress=False)
+        sample_posterior(_toy, np.zeros(2), names="ab", options=replace(QUIET, on_fail="maybe"))
     with pytest.raises(InputError, match="sampler: got 'nuts'"):
-        sample_posterior(_toy, np.zeros(2), names="ab", progress=False, sampler="nuts")
+        sample_posterior(_toy, np.zeros(2), names="ab", options=replace(QUIET, sampler="nuts"))
     with pytest.raises(InputError, match="cov0"):
         sample_posterior(
-            _toy, np.zeros(2), names="ab", cov0=np.eye(3), progress=False, sampler="lockstep"
+            _toy,
+            np.zeros(2),
+            names="ab",
+            cov0=np.eye(3),
+            options=replace(QUIET, sampler="lockstep"),
         )
 
 
@@ -432,7 +441,9 @@ def test_prior_from_spec_errors_name_source_key_and_value(spec, pattern):
 
 def test_progress_bar_per_ensemble(capsys):
     with pytest.warns(ConvergenceWarning):
-        sample_posterior(_toy, np.zeros(2), names="ab", nsteps=20, n_ensembles=2, progress=True)
+        sample_posterior(
+            _toy, np.zeros(2), names="ab", options=SamplerOptions(nsteps=20, n_ensembles=2)
+        )
     err = capsys.readouterr().err
     assert "emcee ensemble 1/2" in err and "emcee ensemble 2/2" in err
 
@@ -441,7 +452,10 @@ def test_lockstep_progress_bar_and_diagnostics_line(capsys):
     lines = []
     with pytest.warns(ConvergenceWarning):
         sample_posterior(
-            _toy, np.zeros(2), names="ab", nsteps=20, progress=lines.append, sampler="lockstep"
+            _toy,
+            np.zeros(2),
+            names="ab",
+            options=SamplerOptions(nsteps=20, progress=lines.append, sampler="lockstep"),
         )  # one compilation with the short runs above: same model, ensembles and walkers
     assert "lockstep sampler (4 ensembles)" in capsys.readouterr().err
     assert lines == ["posterior diagnostics: autocorrelation times, ESS and R-hat per parameter"]

@@ -34,7 +34,7 @@ import numpy as np
 import pytest
 from scipy import special
 
-from piecs_bayes.fit import gaussian_loglik, sample_posterior, sample_posteriors
+from piecs_bayes.fit import SamplerOptions, gaussian_loglik, sample_posterior, sample_posteriors
 from piecs_bayes.fit.mcmc._moves import MOVES, emcee_moves, snooker_move_is_sound
 
 SAMPLERS = ("emcee", "lockstep-jax", "lockstep-numpy")
@@ -115,7 +115,8 @@ def _target(name: str, reference: str):
 
 def _run(sampler, moves, log_prob, args, x0, names, cov0):
     nsteps = STEPS[moves]
-    kw = dict(names=names, nsteps=nsteps, burn=nsteps // 5, seed=11, progress=False, moves=moves)
+    opts = SamplerOptions(nsteps=nsteps, burn=nsteps // 5, seed=11, progress=False, moves=moves)
+    kw = dict(names=names, options=opts)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         if sampler == "emcee":
