@@ -19,6 +19,7 @@ from pathlib import Path
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 TESTS = Path(__file__).resolve().parents[1] / "tests"
 sys.path.insert(0, str(TESTS))
+sys.path.insert(0, str(TESTS / "fit" / "lsq"))  # test_strd
 
 from helpers import STRD_DIR, STRD_MODELS, fit_strd, read_strd  # noqa: E402
 from test_strd import EXPECTED_FAILURES, SOLVER, _digits  # noqa: E402
