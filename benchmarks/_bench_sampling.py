@@ -193,7 +193,7 @@ def agreement(a: Run, b: Run) -> tuple[float, float, float, float]:
 def section_cd(args):
     import emcee
 
-    from piecs_bayes.fit import SamplerOptions, sample_posteriors
+    from piecs_bayes.fit.mcmc import SamplerOptions, sample_posteriors
     from piecs_bayes.fit.mcmc._core import _neg_hessian, sqrt_psd
     from piecs_bayes.fit.mcmc._lockstep import _parts_walkers
     from piecs_bayes.fit.mcmc._moves import emcee_moves

@@ -31,7 +31,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from piecs_bayes.fit import SamplerOptions, gaussian_loglik, sample_posterior  # noqa: E402
+from piecs_bayes.fit.mcmc import SamplerOptions, gaussian_loglik, sample_posterior
 from piecs_bayes.uncertainty import (  # noqa: E402
     bands_from_samples,
     bands_linear,

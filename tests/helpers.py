@@ -215,7 +215,7 @@ def fit_strd(problem: StrdProblem, start, **kwargs):
     """Fit one StRD problem with `piecs_bayes.fit.least_squares` (`throw=False`),
     padded to `STRD_PAD` points with zero weights (Nelson is fitted on log y, as
     certified)."""
-    from piecs_bayes.fit import least_squares
+    from piecs_bayes.fit.lsq import least_squares
 
     p = len(problem.certified)
     fn, names = strd_group_fn(p)

@@ -183,7 +183,8 @@ def coverage_check(
 
     **Returns:** a [`CoverageResult`][].
     """
-    from ..fit import TUNING, FitOptions, fit_profiles, to_part_frame
+    from ..fit import FitOptions, fit_profiles, to_part_frame
+    from ..fit.lsq import TUNING
     from ..simulate import SimulatedProbing, simulate_parts
 
     o = options

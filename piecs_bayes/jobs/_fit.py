@@ -295,7 +295,7 @@ def toolpath_uncertainty(
 
     **Returns:** ``{"linearised": ToolpathUncertainty, "monte_carlo": ... or None}``.
     """
-    from ..fit import prior_from_spec
+    from ..fit.mcmc import prior_from_spec
     from ..uncertainty import (
         LINEARISED_SOURCES,
         LinearisedOptions,

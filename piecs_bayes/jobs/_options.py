@@ -12,15 +12,9 @@ from dataclasses import replace
 from ..compensate import OffsetSettings
 from ..decide import DecisionSettings, settings_from_spec
 from ..errors import InputError
-from ..fit import (
-    BAYES_SAMPLING,
-    CALIBRATION_SOURCE,
-    TUNING,
-    BayesOptions,
-    FitOptions,
-    SamplerOptions,
-    prior_from_spec,
-)
+from ..fit import BAYES_SAMPLING, CALIBRATION_SOURCE, BayesOptions, FitOptions
+from ..fit.lsq import TUNING
+from ..fit.mcmc import SamplerOptions, prior_from_spec
 from ..io import Study, parse_fix
 from ._probe_radius import radius_components
 

@@ -25,7 +25,8 @@ from numbers import Integral, Real
 import numpy as np
 
 from ..errors import InputError
-from ..fit import DECLARED_DOF, normal_variance_factor
+from ..fit import DECLARED_DOF
+from ..fit.lsq import normal_variance_factor
 from ..geometry import CHORD_ERROR_MM, feature_polyline, path_distance, point_distance, probe_window
 from ..io import parse_fix
 from ..uncertainty import (

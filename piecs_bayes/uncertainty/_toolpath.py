@@ -31,9 +31,9 @@ from ..fit import (
     coverage_factor,
     effective_dof,
     is_calibration_source,
-    normal_variance_factor,
     probe_residuals,
 )
+from ..fit.lsq import normal_variance_factor
 from ..geometry import Line, MachineTransform, Profile
 from ..io import rows_to_dataframe
 from . import _toolpath_rows

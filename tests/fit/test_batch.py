@@ -13,15 +13,9 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.fit import (
-    FitOptions,
-    SamplerOptions,
-    Status,
-    fit_profiles,
-    sample_posterior,
-    sample_posteriors,
-    to_part_frame,
-)
+from piecs_bayes.fit import FitOptions, fit_profiles, to_part_frame
+from piecs_bayes.fit.lsq import Status
+from piecs_bayes.fit.mcmc import SamplerOptions, sample_posterior, sample_posteriors
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import (
     fit_study,

@@ -22,7 +22,7 @@ import pytest
 from scipy import stats
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.fit import ConvergenceError, ConvergenceWarning, Posterior
+from piecs_bayes.fit.mcmc import ConvergenceError, ConvergenceWarning, Posterior
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import bayes_study, fit_study, load_probe_data
 

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.fit import TUNING, FitOptions, fit_feature, fit_profile, fit_profile_joint
+from piecs_bayes.fit import FitOptions, fit_feature, fit_profile, fit_profile_joint
+from piecs_bayes.fit.lsq import TUNING
 from piecs_bayes.geometry import MachineTransform
 from piecs_bayes.simulate import (
     DEMO_ERRORS,

@@ -20,7 +20,6 @@ from piecs_bayes.fit import (
     CalibrationOptions,
     FitOptions,
     RadiusComponents,
-    SamplerOptions,
     fit_feature,
     fit_probe_calibration,
     fit_profile,
@@ -29,6 +28,7 @@ from piecs_bayes.fit import (
     fit_profiles,
     fit_profiles_bayes,
 )
+from piecs_bayes.fit.mcmc import SamplerOptions
 from piecs_bayes.geometry import MachineTransform
 from piecs_bayes.simulate import demo_profile
 

@@ -16,7 +16,6 @@ from piecs_bayes.errors import InputError
 from piecs_bayes.export.tables import fit_csv, fit_json
 from piecs_bayes.fit import (
     FitOptions,
-    ScaledInvChi2,
     coverage_factor,
     effective_dof,
     fit_feature,
@@ -25,6 +24,7 @@ from piecs_bayes.fit import (
     probe_sigma,
     to_part_frame,
 )
+from piecs_bayes.fit.mcmc import ScaledInvChi2
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import bayes_sources, fit_study
 from piecs_bayes.simulate import (

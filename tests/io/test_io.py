@@ -392,7 +392,7 @@ def _unit_study(tmp_path, units: str) -> Path:
 def test_an_inch_lognormal_prior_is_the_mm_one(tmp_path):
     """mu is the log of a length: mu_mm = mu_in + ln(25.4) (sigma unchanged); the inch
     study's prior is the mm study's: same parameters, log-density and samples."""
-    from piecs_bayes.fit import prior_from_spec
+    from piecs_bayes.fit.mcmc import prior_from_spec
 
     mm, inch = (load_study(_unit_study(tmp_path, u)) for u in ("mm", "in"))
     assert inch.transform.z_offset == pytest.approx(mm.transform.z_offset, rel=1e-14)

@@ -546,7 +546,7 @@ def test_a_failed_part_fit_falls_back_or_is_left_out(monkeypatch):
     # capability_study fits in batches (piecs_bayes._distributed, issue 8): a failed
     # fit is a non-zero status of its batch problems, simulated here
     import piecs_bayes.jobs._batch as dist
-    from piecs_bayes.fit import Status
+    from piecs_bayes.fit.lsq import Status
 
     study = load_study(BATCH)
     files = sorted(BATCH.parent.glob("part0[1-5].csv"))

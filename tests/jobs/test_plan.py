@@ -15,7 +15,8 @@ import pytest
 
 from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.export.machine import plan_json, plan_program
-from piecs_bayes.fit import fit_profiles, normal_variance_factor, to_part_frame
+from piecs_bayes.fit import fit_profiles, to_part_frame
+from piecs_bayes.fit.lsq import normal_variance_factor
 from piecs_bayes.geometry import Line, feature_polyline, path_distance, probe_window
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import (

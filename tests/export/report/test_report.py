@@ -90,7 +90,7 @@ def _parse(text: str) -> _Sections:
 def demo_results():
     import warnings
 
-    from piecs_bayes.fit import ConvergenceWarning
+    from piecs_bayes.fit.mcmc import ConvergenceWarning
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)

@@ -13,7 +13,7 @@ from helpers import algebraic_circle, circle_residuals
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from piecs_bayes.fit import Status, least_squares, solve_arrays
+from piecs_bayes.fit.lsq import Status, least_squares, solve_arrays
 
 _NUM = r"(-?\d+(?:\.\d*)?)"
 _TRIPLE = re.compile(rf"xc\s+{_NUM}\s+yc\s+{_NUM}\s+R[^\d-]*{_NUM}")

@@ -13,7 +13,7 @@ import pytest
 import scipy.optimize
 
 from piecs_bayes.errors import AnalysisError, InputError
-from piecs_bayes.fit import LsqResult, SolverOptions, Status, least_squares, solve_arrays
+from piecs_bayes.fit.lsq import LsqResult, SolverOptions, Status, least_squares, solve_arrays
 
 # --------------------------------------------------------------------------- #
 # shared problems (module-level functions: one compile per shape)

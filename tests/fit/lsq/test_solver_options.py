@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.fit import SolverOptions, least_squares, solve_arrays
+from piecs_bayes.fit.lsq import SolverOptions, least_squares, solve_arrays
 
 
 def test_defaults_are_the_keywords_they_replace():

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from helpers import STRD_MODELS, fit_strd, matching_digits, read_strd
 
-from piecs_bayes.fit import SolverOptions, Status
+from piecs_bayes.fit.lsq import SolverOptions, Status
 
 MAX_STEPS = 2000  # Bennett5 from start 2 needs ~1300 LM steps
 SOLVER = SolverOptions(max_steps=MAX_STEPS)

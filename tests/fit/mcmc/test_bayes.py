@@ -25,7 +25,7 @@ import pytest
 from scipy import stats
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.fit import (
+from piecs_bayes.fit.mcmc import (
     ConvergenceError,
     ConvergenceWarning,
     HalfNormal,
@@ -176,7 +176,7 @@ def test_posterior_to_arviz_and_netcdf(newcomb, tmp_path):
 def test_arviz_computes_the_reported_rhat_and_ess_from_the_stored_chains(sampler, tmp_path):
     """Parity: what a user gets from `az.rhat` / `az.ess` on posterior.nc is what
     the package reports (and judges convergence by)."""
-    from piecs_bayes.fit import sample_posteriors
+    from piecs_bayes.fit.mcmc import sample_posteriors
     from piecs_bayes.fit.mcmc._posterior import import_arviz as _import_arviz
 
     az = _import_arviz()

@@ -34,7 +34,12 @@ import numpy as np
 import pytest
 from scipy import special
 
-from piecs_bayes.fit import SamplerOptions, gaussian_loglik, sample_posterior, sample_posteriors
+from piecs_bayes.fit.mcmc import (
+    SamplerOptions,
+    gaussian_loglik,
+    sample_posterior,
+    sample_posteriors,
+)
 from piecs_bayes.fit.mcmc._moves import MOVES, emcee_moves, snooker_move_is_sound
 
 SAMPLERS = ("emcee", "lockstep-jax", "lockstep-numpy")

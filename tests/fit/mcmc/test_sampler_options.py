@@ -8,7 +8,7 @@ import inspect
 import pytest
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.fit import SamplerOptions, sample_posterior, sample_posteriors
+from piecs_bayes.fit.mcmc import SamplerOptions, sample_posterior, sample_posteriors
 
 
 def test_defaults_are_the_keywords_they_replace():
