@@ -85,7 +85,8 @@ class ProgramAdjustment:
 
 
 def read_program(program):
-    from ._modal import GcodeProgram, read_gcode
+    from ._program import GcodeProgram
+    from ._read import read_gcode
 
     return program if isinstance(program, GcodeProgram) else read_gcode(program)
 
@@ -321,7 +322,7 @@ def adjust_program(
     **Returns:** a :class:`ProgramAdjustment`; write ``.text`` with
     :func:`~piecs_bayes.io.write_text_atomic` (``protect=[input]``).
     """
-    from ._modal import parse_gcode
+    from ._read import parse_gcode
 
     program = read_program(program)
     name = program.name or "<program>"
@@ -338,7 +339,7 @@ def adjust_program(
     texts = _rewrite_blocks(program, target)
     new_source = program.source.with_line_texts(texts)
     try:
-        new_program = parse_gcode(new_source.text, name=program.name, **program.options)
+        new_program = parse_gcode(new_source.text, name=program.name, options=program.options)
     except InputError as exc:
         raise AnalysisError(f"the adjusted program is not valid: {exc}") from None
     _check(program, new_program, target, bmap, name, tool_table, nose_radius_mm)

@@ -80,6 +80,14 @@ def test_round_trip_keeps_odd_bytes_endings_and_blanks():
     assert src.lines[0].percent and src.lines[-1].percent
 
 
+def test_parameters_expressions_and_block_delete_are_lexed():
+    # (these were refused before the reader ran control flow and parameters)
+    line = lex_gcode("/G1 X#1 Z[1+2] #3=[#1*2] (c)\n").lines[0]
+    assert line.block_delete and [str(w) for w in line.words] == ["G1", "X#1", "Z[1+2]"]
+    assert line.words[1].expr is not None and math.isnan(line.words[1].value)
+    assert [a.text for a in line.assignments] == ["#3=[#1*2]"] and line.computed
+
+
 def test_words_keep_their_text():
     line = lex_gcode("N10 g01 X 20.500 Z-.25 F+0.1 (c) ; rest\n").lines[0]
     assert [str(w) for w in line.words] == ["N10", "G01", "X20.500", "Z-.25", "F+0.1"]
@@ -91,12 +99,13 @@ def test_words_keep_their_text():
 @pytest.mark.parametrize(
     "text, message",
     [
-        ("G1 X#1 Z0\n", "parameters"),
-        ("G1 X[1+2]\n", "expressions"),
-        ("/G1 X1\n", "block delete"),
         ("G1 X1 (open\n", "not closed"),
         ("G1 X Z1\n", "has no number"),
-        ("G1 X1 % Z2\n", "alone on its line"),
+        ("G1 X1 % Z2\n", "must end its line"),
+        ("G1 X[1+2\n", "not closed"),
+        ("G1 X1 /Z2\n", "must begin the line"),
+        ("#1 2\n", "not assigned"),
+        ("G1 X10\x00\n", "NUL byte"),
     ],
 )
 def test_lexer_errors_name_line_and_text(text, message):
