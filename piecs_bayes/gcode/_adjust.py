@@ -336,6 +336,7 @@ def adjust_program(
     moves = {m.line: m for m in program.moves}
     target = _targets(program, moves, nominal_profile, adjusted_profile, bmap, tol_mm)
     _check_shifts(moves, target, bmap, name, max_correction_mm)
+    _check_editable(program, target, name)
     texts = _rewrite_blocks(program, target)
     new_source = program.source.with_line_texts(texts)
     try:
@@ -402,6 +403,23 @@ def _check_shifts(moves, target, bmap, name, max_correction_mm) -> None:
             raise AnalysisError(
                 f"{name}:{ln}: the block{f' of feature {fid!r}' if fid else ''} would move by "
                 f"{shift:.4f} mm, more than the maximum correction {max_correction_mm:g} mm"
+            )
+
+
+def _check_editable(program, lines, name) -> None:
+    """Each block to rewrite must be editable where it stands: it ran once, its words
+    are numbers, it makes one move with X/Z words (not U/W, not a ,C/,R corner)."""
+    for ln in sorted(lines):
+        why = program.edit_refusal(ln)
+        if why is None:
+            letters = {w.letter for w in program.source.line(ln).words}
+            if {"U", "W"} & letters:
+                why = f"line {ln} moves by U/W (incremental words), which are not rewritten yet"
+            elif {",C", ",R"} & letters or len(program.moves_at(ln)) > 1:
+                why = f"line {ln} makes more than one move (a ,C/,R corner)"
+        if why is not None:
+            raise AnalysisError(
+                f"{name}:{ln}: the adjusted program cannot edit this block in place: {why}"
             )
 
 

@@ -286,6 +286,8 @@ class ModalMachine:
                 ("_speed_override", "_feed_override", "_adaptive_feed", "_feed_hold"), 1.0
             ),
             "_task": 0.0,
+            "_vmajor": 2.9,  # the LinuxCNC version whose rules the reader follows
+            "_vminor": 0.0,
             "_remap_level": 0.0,
         }
         return values.get(name)
@@ -713,10 +715,11 @@ class ModalMachine:
         xs = not axes or any(k in w for k in ("X", "U"))
         zs = not axes or any(k in w for k in ("Z", "W"))
         ref = self.to_program(self.homes[code])
-        self._emit(
-            line, "rapid", (ref[0] if xs else mid[0], ref[1] if zs else mid[1]), None, via=code
-        )
-        if any(math.isnan(v) for v in self.pos):
+        end = (ref[0] if xs else mid[0], ref[1] if zs else mid[1])
+        if not any(math.isnan(v) for v in end):
+            self._emit(line, "rapid", end, None, via=code)
+        else:
+            self.pos = end
             self.note(
                 line.number,
                 code,
