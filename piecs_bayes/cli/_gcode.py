@@ -223,13 +223,13 @@ def _compare_rs274(args, program, tools, console, nose_compensate) -> int:
         console.say(f"rs274 stops: {ref.error}")
         return 1
     if not any(m.comp is not None for m in program.moves):
-        return _agree(console, "the reader's moves", ref.moves, program.moves, 1e-4)
+        return _agree(console, "the reader's own moves", ref.moves, program.moves, 1e-4)
     resolved = nose_compensate(program, tool_table=tools, nose_radius=args.nose_radius)
     out = run_rs274(resolved.text, tool_table=args.tool_table)
     if out.error:
         console.say(f"rs274 disagrees: {out.error}")
         return 1
-    return _agree(console, "the resolved program's", ref.moves, out.moves, None)
+    return _agree(console, "the resolved program's moves", ref.moves, out.moves, None)
 
 
 def _agree(console, what, ref, ours, tol) -> int:
@@ -250,6 +250,6 @@ def _agree(console, what, ref, ours, tol) -> int:
         console.say(f"rs274 disagrees: {what} are {dev:.2e} mm off its canonical moves")
         return 1
     console.say(
-        f"rs274 agrees ({what}): {len(ref)} canonical moves, largest difference {dev:.2e} mm"
+        f"rs274 agrees: {len(ref)} canonical moves, largest difference {dev:.2e} mm ({what})"
     )
     return 0

@@ -331,6 +331,13 @@ def adjust_program(
             f"the adjusted profile's features {adjusted_profile.ids} differ from the nominal "
             f"ones {nominal_profile.ids}"
         )
+    for ln in sorted({m.line for m in candidates(program)}):
+        why = program.edit_refusal(ln)
+        if why is not None:  # before the mapping: a block that runs twice maps twice
+            raise AnalysisError(
+                f"{name}:{ln}: the adjusted program cannot edit this finish-cut block in "
+                f"place: {why}"
+            )
     bmap = map_blocks_to_profile(program, nominal_profile, tol_mm=tol_mm, mapping=mapping)
     _check_sides(program, nominal_profile, bmap)
     moves = {m.line: m for m in program.moves}

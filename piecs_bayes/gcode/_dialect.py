@@ -231,7 +231,7 @@ def dialect_table(name: str) -> DialectTable:
 
 # -- detection --------------------------------------------------------------------------
 
-_STRONG, _WEAK = 10, 1
+_STRONG, _MEDIUM, _WEAK = 10, 5, 1
 _LINUXCNC_ONLY = {
     "G7": "G7/G8 diameter/radius mode",
     "G8": "G7/G8 diameter/radius mode",
@@ -263,11 +263,13 @@ def detect_dialect(source) -> Dialect:
     """
     score = dict.fromkeys(DIALECTS, 0)
     why: dict[str, list[str]] = {d: [] for d in DIALECTS}
+    weights: dict[str, int] = {}
 
     def add(d: str, weight: int, what: str) -> None:
-        score[d] += weight
-        if what not in why[d]:
+        if what not in why[d]:  # each kind of evidence counts once
+            score[d] += weight
             why[d].append(what)
+            weights[what] = weight
 
     safe_start = None
     for line in source.lines:
@@ -288,8 +290,8 @@ def detect_dialect(source) -> Dialect:
         for c in codes:
             if c in _LINUXCNC_ONLY:
                 add("linuxcnc", _STRONG, _LINUXCNC_ONLY[c])
-            if c in _FANUC_ONLY:
-                add("fanuc", _STRONG if c == "G50" else _WEAK, _FANUC_ONLY[c])
+            if c in _FANUC_ONLY:  # (LinuxCNC's G98/G99 only matter to drilling cycles)
+                add("fanuc", _STRONG, _FANUC_ONLY[c])
             if c in _HAAS_ONLY:
                 add("haas", _STRONG, _HAAS_ONLY[c])
             if c in ("M98", "M99"):
@@ -310,7 +312,9 @@ def detect_dialect(source) -> Dialect:
             add("fanuc", _WEAK, "O program number")
         t = line.word("T") if "T" in letters else None
         if t is not None and t.expr is None and len(t.text.lstrip("+")) == 4:
-            add("fanuc", _WEAK, "Tttoo tool words")
+            add("fanuc", _MEDIUM, "Tttoo tool words")
+    for d in DIALECTS:  # the strongest reasons first, else in the order found
+        why[d].sort(key=lambda what: -weights[what])
     fanuc_family = score["fanuc"] + score["haas"]
     if score["okuma"] >= 100:
         return Dialect("okuma", ", ".join(why["okuma"]))

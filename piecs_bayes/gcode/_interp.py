@@ -28,6 +28,7 @@ from ._options import ReadOptions
 from ._params import ParameterError, Parameters
 
 _MAX_CALL_DEPTH = 50
+_FLOW = ("if_goto", "if_then", "goto", "while", "end")
 # G65 argument letters -> local parameters (Fanuc macro B, argument specification I)
 _G65_ARGS = {
     "A": 1, "B": 2, "C": 3, "I": 4, "J": 5, "K": 6, "D": 7, "E": 8, "F": 9, "H": 11,
@@ -71,8 +72,9 @@ class Structure:
     """elseif/else index -> its endif."""
 
 
-def scan(src: GcodeText, err) -> Structure:
-    """The control structure of ``src``; ``err(index, msg)`` builds the errors."""
+def scan(src: GcodeText, err, linuxcnc: bool) -> Structure:
+    """The control structure of ``src``; ``err(index, msg)`` builds the errors. O-words
+    are LinuxCNC's (``linuxcnc``), macro B statements the others'."""
     st = Structure()
     stack: list[tuple[str, str, int]] = []  # (kind, label, index)
     do_stack: list[tuple[int, int]] = []  # Fanuc WHILE DOm: (m, index)
@@ -83,6 +85,14 @@ def scan(src: GcodeText, err) -> Structure:
         first = line.words[0] if line.words else None
         if first is not None and first.letter == "O" and first.expr is None:
             st.programs.setdefault(int(first.value), i)
+        if line.macro is not None and linuxcnc and line.macro.kind in _FLOW:
+            what = line.macro.kind.split("_")[0].upper()
+            raise err(i, f"macro B statements ({what}) are Fanuc's; this program is read as "
+                      "linuxcnc")  # fmt: skip
+        if line.oword is not None and not linuxcnc:
+            o = line.oword
+            raise err(i, f"O-word statements (o{o.label} {o.keyword}) are LinuxCNC's; this "
+                      "program is not read as linuxcnc")  # fmt: skip
         if line.macro is not None:
             m = line.macro
             if m.kind == "while":
@@ -209,7 +219,7 @@ class Interpreter:
         self.plain: dict[int, Block] = {}
         self.loop_line: int | None = None
         self.noted_delete: set[int] = set()
-        self.structure = scan(src, self._err_at)
+        self.structure = scan(src, self._err_at, self.linuxcnc)
 
     # -- errors and values ------------------------------------------------------------------
 
