@@ -1,4 +1,4 @@
-"""Probe CSV reading speed: the reader, its row-by-row reference, pandas (issue 16).
+"""Probe CSV and part-program reading speed: the readers and their anchors (issues 16, 38).
 
     .venv/bin/python benchmarks/bench_io.py                 # 1,000,000 rows
     .venv/bin/python benchmarks/bench_io.py --rows 200000 --repeat 5
@@ -15,6 +15,10 @@ it once so that it is in the page cache, then times, side by side in this one ru
 - `read_probe_csv` of the same file with one bad cell at row 500,123 (or the
   last row), which must name that row's line exactly as the row reader does,
   best of `--repeat`.
+
+- `gcode.read_gcode` of a LinuxCNC program of `--blocks` executed blocks (25% of them
+  in a subroutine called with arguments, its words computed from parameters), beside
+  LinuxCNC's `rs274 -g` on the same file (when installed; it also writes its canon).
 
 Prints rows per second of each (wall clock, and CPU time of this process, which a
 busy machine disturbs less) and checks that both readers give identical arrays.
@@ -92,11 +96,42 @@ def probeopen_times(tmp: Path, rows: int, repeat: int, pd):
     return t, t_pd
 
 
+def write_program(path: Path, blocks: int) -> None:
+    """A LinuxCNC lathe program of ``blocks`` executed blocks: calls of a subroutine
+    whose move is computed from its arguments, between plain moves."""
+    lines = ["G18 G21 G7 F100", "o<step> sub", "  G1 X[#1 * 2] Z[-#2]", "o<step> endsub"]
+    for k in range(blocks // 4):
+        lines += [f"o<step> call [{k % 50}] [{k * 0.001:.3f}]"]
+        lines += [f"G1 X{20 + k % 7}.000 Z-{k * 0.001:.3f}"] * 2
+    path.write_text("\n".join(lines + ["M2", ""]))
+
+
+def program_times(tmp: Path, blocks: int, repeat: int):
+    from piecs_bayes.gcode import read_gcode, rs274_path
+
+    path = tmp / "program.ngc"
+    write_program(path, blocks)
+    program = read_gcode(path)
+    t_read = best(lambda: read_gcode(path), repeat)
+    print(f"program: {sum(program.runs):,} blocks ran, {len(program.moves):,} moves")
+    exe = rs274_path()
+    if exe is None:
+        return t_read, None
+    import subprocess
+
+    def rs274():
+        subprocess.run([exe, "-g", str(path), str(tmp / "canon.txt")], check=True,
+                       capture_output=True, cwd=tmp, stdin=subprocess.DEVNULL)  # fmt: skip
+
+    return t_read, best(rs274, repeat)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rows", type=int, default=1_000_000)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--no-rows-reader", action="store_true", help="skip the slow row reader")
+    ap.add_argument("--blocks", type=int, default=100_000, help="blocks of the part program")
     args = ap.parse_args()
     import pandas as pd
 
@@ -153,6 +188,7 @@ def main() -> None:
         assert f"probe_bad.csv:{line}," in msg, msg
 
         t_cnc, t_cnc_pd = probeopen_times(Path(tmp), args.rows, args.repeat, pd)
+        t_prog, t_rs274 = program_times(Path(tmp), args.blocks, args.repeat)
 
     n = args.rows
 
@@ -170,6 +206,13 @@ def main() -> None:
     row(f"read_probe_csv, bad cell at row {bad_row:,}", t_bad)
     row("read_control_probe, LinuxCNC PROBEOPEN file (against its plan)", t_cnc)
     row("pandas.read_csv of that file (sep=' ', no checks)", t_cnc_pd)
+    n = args.blocks
+    print()
+    print("| program reader | wall s | blocks/s | CPU s | blocks/CPU-s |")
+    print("|---|---:|---:|---:|---:|")
+    row("gcode.read_gcode (subroutine calls, parameters)", t_prog)
+    if t_rs274 is not None:
+        row("rs274 -g (LinuxCNC, C++; CPU s: this process's, not rs274's)", t_rs274)
     print()
     print(f"bad cell: {msg}")
     if t_rows is not None:

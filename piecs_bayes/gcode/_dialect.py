@@ -250,6 +250,15 @@ _LINUXCNC_ONLY = {
 _FANUC_ONLY = {"G50": "G50", "G98": "G98/G99 feed modes", "G99": "G98/G99 feed modes"}
 _HAAS_ONLY = {"G103": "G103", "G187": "G187", "G154": "G154 work offsets", "M97": "M97"}
 _OKUMA_VARIABLE = re.compile(r"\bV[CS]\d+\s*=", re.I)
+# G and M codes that tell a dialect: code -> (dialect, weight, what)
+_EVIDENCE = {
+    **{c: ("linuxcnc", _STRONG, what) for c, what in _LINUXCNC_ONLY.items()},
+    **{c: ("fanuc", _STRONG, what) for c, what in _FANUC_ONLY.items()},
+    **{c: ("haas", _STRONG, what) for c, what in _HAAS_ONLY.items()},
+    "M98": ("fanuc", _STRONG, "M98/M99 subprograms"),
+    "M99": ("fanuc", _STRONG, "M98/M99 subprograms"),
+    "M6": ("linuxcnc", _WEAK, "M6 tool changes"),
+}
 
 
 def detect_dialect(source) -> Dialect:
@@ -273,46 +282,46 @@ def detect_dialect(source) -> Dialect:
 
     safe_start = None
     for line in source.lines:
+        words = line.words
+        if not (words or line.header or line.oword or line.macro or line.assignments):
+            continue
         if line.header is not None:
             add("okuma", 100, f"{line.header} header")
         if line.oword is not None:
             add("linuxcnc", _STRONG, f"O-word {line.oword.keyword}")
         if line.macro is not None and line.macro.kind in ("if_goto", "if_then", "goto", "while"):
             add("fanuc", _STRONG, "macro B " + line.macro.kind.split("_")[0].upper())
-        if _OKUMA_VARIABLE.search(line.text):
-            add("okuma", _STRONG, "VC/VS variables")
-        for a in line.assignments:
-            if isinstance(a.target.ref, str):
+        if line.assignments:
+            if _OKUMA_VARIABLE.search(line.text):
+                add("okuma", _STRONG, "VC/VS variables")
+            if any(isinstance(a.target.ref, str) for a in line.assignments):
                 add("linuxcnc", _STRONG, "named parameters #<...>")
-        letters = {w.letter for w in line.words}
-        codes = [w.code for w in line.words if w.letter in "GM" and w.expr is None]
-        gs = [c for c in codes if c.startswith("G")]
-        for c in codes:
-            if c in _LINUXCNC_ONLY:
-                add("linuxcnc", _STRONG, _LINUXCNC_ONLY[c])
-            if c in _FANUC_ONLY:  # (LinuxCNC's G98/G99 only matter to drilling cycles)
-                add("fanuc", _STRONG, _FANUC_ONLY[c])
-            if c in _HAAS_ONLY:
-                add("haas", _STRONG, _HAAS_ONLY[c])
-            if c in ("M98", "M99"):
-                add("fanuc", _STRONG, "M98/M99 subprograms")
-            if c == "M6":
-                add("linuxcnc", _WEAK, "M6 tool changes")
-        if {"U", "W"} & letters and not {"G4"} & set(gs):
+        gs: list[str] = []
+        letters = ""
+        for w in words:
+            letter = w.letter
+            letters += letter if len(letter) == 1 else "," + letter[1]
+            if letter in "GM" and w.expr is None:
+                c = w.code
+                if letter == "G":
+                    gs.append(c)
+                hit = _EVIDENCE.get(c)
+                if hit is not None:
+                    add(*hit)
+            elif letter == "T" and w.expr is None and len(w.text.lstrip("+")) == 4:
+                add("fanuc", _MEDIUM, "Tttoo tool words")
+        if ("U" in letters or "W" in letters) and "G4" not in gs:
             add("fanuc", _STRONG, "U/W words")
-        if {",C", ",R"} & letters:
+        if ",C" in letters or ",R" in letters:
             add("fanuc", _STRONG, ",C/,R corners")
-        if {"P", "Q"} <= letters and {"G70", "G71", "G72", "G73"} & set(gs):
+        if "P" in letters and "Q" in letters and {"G70", "G71", "G72", "G73"} & set(gs):
             add("fanuc", _STRONG, "G7x P/Q blocks")
-        if line.words and line.words[0].letter == "O" and line.text.lstrip().startswith(":"):
-            add("fanuc", _STRONG, ":program number")
-        if "G80" in gs and len(gs) >= 4 and safe_start is None:
-            safe_start = " ".join(str(w) for w in line.words if w.letter == "G")
-        if line.words and line.words[0].letter == "O" and line.words[0].expr is None:
+        if letters[:1] == "O" and words[0].expr is None:
+            if line.text.lstrip().startswith(":"):
+                add("fanuc", _STRONG, ":program number")
             add("fanuc", _WEAK, "O program number")
-        t = line.word("T") if "T" in letters else None
-        if t is not None and t.expr is None and len(t.text.lstrip("+")) == 4:
-            add("fanuc", _MEDIUM, "Tttoo tool words")
+        if "G80" in gs and len(gs) >= 4 and safe_start is None:
+            safe_start = " ".join(str(w) for w in words if w.letter == "G")
     for d in DIALECTS:  # the strongest reasons first, else in the order found
         why[d].sort(key=lambda what: -weights[what])
     fanuc_family = score["fanuc"] + score["haas"]

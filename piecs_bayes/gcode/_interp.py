@@ -281,7 +281,8 @@ class Interpreter:
                 ended = True
                 break  # the tape's end
             nxt = self.step(pc, line)
-            self.states.setdefault(line.number, self.machine.state())
+            if line.number not in self.states:
+                self.states[line.number] = self.machine.state()
             if nxt is None or (line.percent and pc != first):
                 ended = True
                 break
@@ -352,7 +353,7 @@ class Interpreter:
         words = []
         for k, w in enumerate(line.words):
             if w.expr is None:
-                words.append(BlockWord(w.letter, w.value, w.text, k))
+                words.append(BlockWord.of(w.letter, w.value, w.text, k))
                 continue
             if (
                 not self.linuxcnc
@@ -362,7 +363,7 @@ class Interpreter:
             ):
                 continue  # Fanuc: a word whose variable is vacant is as if absent
             v = self.value(w.expr, line, f"word {w.letter}{w.text}")
-            words.append(BlockWord(w.letter, v, _fmt(v), k))
+            words.append(BlockWord.of(w.letter, v, _fmt(v), k))
         return Block(line, tuple(words))
 
     def assign(self, values, line: SourceLine) -> None:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from ..errors import InputError
@@ -27,6 +27,10 @@ from ._expr import FUNCTIONS, ExpressionError, Param, read_bare, read_param_ref,
 
 _EOL = re.compile(r"\r\n|\n|\r")
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)")
+# a line of plain words only (most lines): lexed by one expression
+_PLAIN_LINE = re.compile(r"[ \t]*(?:[A-Za-z][ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)[ \t]*)*")
+_PLAIN_WORD = re.compile(r"([A-Za-z])[ \t]*([+-]?(?:\d+(?:\.\d*)?|\.\d+))")
+_CODES: dict[tuple[str, float], str] = {}
 
 
 @dataclass(frozen=True)
@@ -60,7 +64,7 @@ class Word:
         """Normalised code for G and M words: ``"G1"``, ``"G41.1"``, ``"M30"``."""
         if self.expr is not None:
             return f"{self.letter}{self.text}"
-        return code_of(self.letter, float(self.text))
+        return code_of(self.letter, self.value)
 
     def __str__(self) -> str:
         return f"{self.letter}{self.text}"
@@ -68,8 +72,11 @@ class Word:
 
 def code_of(letter: str, value: float) -> str:
     """``G`` and ``1.0`` -> ``"G1"``; ``G``, ``41.1`` -> ``"G41.1"``."""
-    num = f"{value:.4f}".rstrip("0").rstrip(".")
-    return f"{letter}{num}"
+    code = _CODES.get((letter, value))
+    if code is None:
+        num = f"{value:.4f}".rstrip("0").rstrip(".")
+        code = _CODES.setdefault((letter, value), f"{letter}{num}")
+    return code
 
 
 @dataclass(frozen=True)
@@ -220,6 +227,7 @@ _O_KEYWORDS = frozenset(
     "break continue".split()
 )
 _O_LABEL = re.compile(r"\s*(?:(\d+)|<([^>]*)>)")
+_O_KEYWORD_AFTER = re.compile(r"\s*[Oo]\s*\d+\s*[A-Za-z]")
 _KEYWORD = re.compile(r"(IF|WHILE|GOTO|END\s*(\d)|THEN|POPEN|PCLOS|DPRNT|BPRNT)(?![A-Z])", re.I)
 _ALNUM = re.compile(r"[A-Za-z]+")
 
@@ -505,6 +513,32 @@ class _LineLexer:
         return len(text)
 
 
+_new = object.__new__
+
+
+def _plain_word(m) -> Word:
+    """``Word(...)`` of a plain word's match, built without the frozen ``__init__``
+    (most of a long program's time is spent making its words)."""
+    w = _new(Word)
+    w.__dict__.update(
+        letter=m[1].upper(),
+        text=m[2],
+        value=float(m[2]),
+        start=m.start(),
+        end=m.end(),
+        num_start=m.start(2),
+        expr=None,
+    )
+    return w
+
+
+def _plain_line(number: int, text: str, eol: str, words: tuple) -> SourceLine:
+    """``SourceLine(number, text, eol, words)``, as `_plain_word` builds a word."""
+    line = _new(SourceLine)
+    line.__dict__.update(_LINE_DEFAULTS, number=number, text=text, eol=eol, words=words)
+    return line
+
+
 def lex_line(
     text: str, eol: str, number: int, name: str | None, *, strict: bool = True
 ) -> SourceLine:
@@ -514,6 +548,10 @@ def lex_line(
         return SourceLine(number, text, eol, percent=True)
     if stripped.startswith("$"):  # Okuma OSP header: $NAME.MIN% (or $NAME.MIN)
         return SourceLine(number, text, eol, percent=stripped.endswith("%"), header=stripped)
+    if _PLAIN_LINE.fullmatch(text):
+        words = tuple([_plain_word(m) for m in _PLAIN_WORD.finditer(text)])
+        if not (words and words[0].letter == "O" and _O_KEYWORD_AFTER.match(text)):
+            return _plain_line(number, text, eol, words)
     lx = _LineLexer(text)
     error = None
     try:
@@ -535,6 +573,11 @@ def lex_line(
         macro=lx.macro,
         error=error,
     )
+
+
+_LINE_DEFAULTS = {
+    f.name: f.default for f in fields(SourceLine) if f.name not in ("number", "text", "eol")
+}
 
 
 def lex_gcode(text: str, *, name: str | None = None, strict: bool = True) -> GcodeText:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from ..errors import InputError
 from ._dialect import DialectTable
@@ -55,19 +56,20 @@ _WORK_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G5
 _FANUC_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59")
 
 
-@dataclass(frozen=True, slots=True)
-class BlockWord:
+class BlockWord(NamedTuple):
     """A word of an executed block: its letter, its value now, its text (as written, or
-    the value computed) and its index among the source line's words."""
+    the value computed), its index among the source line's words and, for G and M
+    words, its code (``"G1"``)."""
 
     letter: str
     value: float
     text: str
     index: int
+    code: str = ""
 
-    @property
-    def code(self) -> str:
-        return code_of(self.letter, self.value)
+    @classmethod
+    def of(cls, letter: str, value: float, text: str, index: int) -> BlockWord:
+        return cls(letter, value, text, index, code_of(letter, value) if letter in "GM" else "")
 
 
 @dataclass(frozen=True)
@@ -79,10 +81,9 @@ class Block:
 
     @classmethod
     def plain(cls, line: SourceLine) -> Block:
-        """The block of a line whose words are all plain numbers."""
-        return cls(
-            line, tuple(BlockWord(w.letter, w.value, w.text, k) for k, w in enumerate(line.words))
-        )
+        """The block of a line whose words are all plain numbers: its words as lexed
+        (they have the letter, value, text and code a block word has)."""
+        return cls(line, line.words)
 
 
 @dataclass

@@ -11,6 +11,7 @@ What is read in each dialect: docs/models/part_programs.md and docs/formats.md.
 
 from __future__ import annotations
 
+import gc
 from dataclasses import replace
 from pathlib import Path
 
@@ -95,6 +96,16 @@ def parse_gcode(
         options = replace(options, **changes) if changes else options
     except InputError as exc:
         raise InputError(str(exc), file=name) from None
+    collecting = gc.isenabled()
+    gc.disable()  # a long program makes many small objects: the collector would rescan them
+    try:
+        return _parse(text, dialect, name, options)
+    finally:
+        if collecting:
+            gc.enable()
+
+
+def _parse(text: str, dialect, name: str | None, options: ReadOptions) -> GcodeProgram:
     src = lex_gcode(text, name=name, strict=False)
     chosen = _dialect(dialect, options, src)
     opts = options.resolved(chosen.name)
