@@ -219,6 +219,7 @@ class Interpreter:
         self.plain: dict[int, Block] = {}
         self.loop_line: int | None = None
         self.noted_delete: set[int] = set()
+        self.current: SourceLine | None = None
         self.structure = scan(src, self._err_at, self.linuxcnc)
 
     # -- errors and values ------------------------------------------------------------------
@@ -296,7 +297,7 @@ class Interpreter:
                 f"the program ends inside {frame.label} (called from line "
                 f"{lines[frame.back - 1].number}) without returning",
             )
-        self.machine.finish(None)
+        self.machine.finish()
 
     def lex_error(self, line: SourceLine) -> None:
         for w in line.words:

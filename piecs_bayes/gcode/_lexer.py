@@ -28,8 +28,12 @@ from ._expr import FUNCTIONS, ExpressionError, Param, read_bare, read_param_ref,
 _EOL = re.compile(r"\r\n|\n|\r")
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)")
 # a line of plain words only (most lines): lexed by one expression
-_PLAIN_LINE = re.compile(r"[ \t]*(?:[A-Za-z][ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)[ \t]*)*")
-_PLAIN_WORD = re.compile(r"([A-Za-z])[ \t]*([+-]?(?:\d+(?:\.\d*)?|\.\d+))")
+_NUM = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)"
+_PLAIN_LINE = re.compile(rf"[ \t]*(?:[A-Za-z][ \t]*{_NUM}[ \t]*)*")
+_PLAIN_WORD = re.compile(rf"([A-Za-z])[ \t]*({_NUM})")
+# ... and of plain words and comments
+_COMMENTED_LINE = re.compile(rf"(?:[ \t]*(?:[A-Za-z][ \t]*{_NUM}|\([^()]*\)))*[ \t]*(?:;.*)?")
+_COMMENTED_TOKEN = re.compile(rf"([A-Za-z])[ \t]*({_NUM})|\(([^()]*)\)|;(.*)")
 _CODES: dict[tuple[str, float], str] = {}
 
 
@@ -552,6 +556,16 @@ def lex_line(
         words = tuple([_plain_word(m) for m in _PLAIN_WORD.finditer(text)])
         if not (words and words[0].letter == "O" and _O_KEYWORD_AFTER.match(text)):
             return _plain_line(number, text, eol, words)
+    elif _COMMENTED_LINE.fullmatch(text) and not _O_KEYWORD_AFTER.match(text):
+        words, comments = [], []
+        for m in _COMMENTED_TOKEN.finditer(text):
+            if m[1] is not None:
+                words.append(_plain_word(m))
+            elif m[3] is not None:
+                comments.append(Comment("paren", m[3], m.start(), m.end()))
+            else:
+                comments.append(Comment("semicolon", m[4], m.start(), m.end()))
+        return SourceLine(number, text, eol, tuple(words), tuple(comments))
     lx = _LineLexer(text)
     error = None
     try:

@@ -214,7 +214,7 @@ class ModalMachine:
         self.absolute, self.arc_absolute = modes.absolute, modes.arc_absolute
         self.feed_per_rev = modes.feed_per_rev
 
-    def finish(self, line: SourceLine | None) -> None:
+    def finish(self) -> None:
         """The program ended: a ,C/,R corner still waiting for its next move is an error."""
         if self.corner is not None:
             m, w = self.corner
@@ -486,9 +486,7 @@ class ModalMachine:
             old = self.work()
             self.system = gcodes["coord"]
             self._reframe(line, old, self.system)
-        if "path" in gcodes or "haas_path" in gcodes:
-            pass  # path control: no effect on the programmed path
-        if "distance" in gcodes:
+        if "distance" in gcodes:  # (path control G61/G64, G103, G187: not the path's shape)
             self.absolute = gcodes["distance"] == "G90"
         if "arc_distance" in gcodes:
             self.arc_absolute = gcodes["arc_distance"] == "G90.1"
@@ -507,10 +505,6 @@ class ModalMachine:
         elif nonmodal in ("G28.1", "G30.1"):
             wx, wz = self.work()
             self.homes[nonmodal[:3]] = (self.pos[0] + wx, self.pos[1] + wz)
-        elif nonmodal == "G9":
-            pass  # exact stop for this block: no effect on the path
-        elif nonmodal == "G11":
-            pass
 
     def _check_letters(self, line, gcodes, mcodes, w) -> None:
         nonmodal = gcodes.get("nonmodal")
@@ -598,9 +592,9 @@ class ModalMachine:
                 raise self.err(line, f"L must be a tool orientation 0-9, got {w['L'].value:g}")
             setting = CompSetting(side, code, line.number, None, self.length(w["D"].value), orient)
         else:
-            tool = self.tool if not self.turret or self.table.name == "linuxcnc" else None
-            if self.table.name == "linuxcnc" and self.turret:
-                tool = None
+            # the tool an M6 loaded; a turret-style T word leaves it to the program's reader
+            # (`finish_cut_tools`: Tttoo is a tool and an offset, not a tool-table entry)
+            tool = None if self.turret else self.tool
             if "D" in w:
                 d = w["D"].value
                 if d < 0 or abs(d - round(d)) >= 1e-4:

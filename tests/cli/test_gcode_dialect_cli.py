@@ -62,3 +62,36 @@ def test_init_with_a_given_dialect_and_the_study_key(capsys, tmp_path):
         load_study(tmp_path / "bad.toml")
     rc, text = _run(capsys, ["init", FANUC, "--out", tmp_path / "x.toml", "--dialect", "siemens"])
     assert rc == 2 and "invalid choice" in text
+
+
+BAD = {
+    "unterminated_sub": ("G18 G21 G8 F1\no100 sub\nG1 X1\nM2\n", 2, "has no o100 endsub"),
+    "unknown_label": ("G18 G21 G8 F1\no200 call\nM2\n", 2, "no o200 sub in this program"),
+    "division_by_zero": ("G18 G21 G8 F1\n#1 = 0\nG1 X[1 / #1]\nM2\n", 3, "division by zero"),
+    "endless_loop": ("G18 G21 G8 F1\no1 while [1]\nG1 X1\no1 endwhile\nM2\n", None,
+                     "1,000,000 blocks without ending (inside the loop of line 2)"),
+    "nul_byte": ("G18 G21 G8 F1\nG1 X1\x00\nM2\n", 2, "NUL byte"),
+    "crlf_refusal": ("G18 G21 G8 F1\r\nG1 X[1/0]\r\nM2\r\n", 2, "division by zero"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_refusals_exit_2_with_one_line_naming_the_line(capsys, tmp_path, case):
+    text, line, message = BAD[case]
+    path = tmp_path / f"{case}.ngc"
+    path.write_bytes(text.encode("utf-8", errors="surrogateescape"))
+    out = tmp_path / "out.ngc"
+    argv = ["gcode", "nose-comp", path, "-o", out, "--nose-radius", "0.4"]
+    rc, said = _run(capsys, argv)
+    assert rc == 2 and len(said.strip().splitlines()) == 1, said
+    assert message in said and "Traceback" not in said and not out.exists()
+    if line is not None:
+        assert f"{path}:{line}:" in said
+
+
+def test_ten_megabytes_of_comments_are_read(capsys, tmp_path):
+    path = tmp_path / "comments.ngc"
+    comment = "(" + "a very long comment " * 50 + ")\n"
+    path.write_text("G18 G21 G8 F1\n" + comment * (10_000_000 // len(comment)) + "G1 X1\nM2\n")
+    rc, said = _run(capsys, ["gcode", "check", path, "-q"])
+    assert rc == 0 and said == "", said

@@ -71,6 +71,22 @@ def test_round_trip_property(lines, last_eol):
     assert lex_gcode(text).text == text
 
 
+@settings(max_examples=300, deadline=None)
+@given(_line)
+def test_the_fast_paths_lex_as_the_full_lexer(text):
+    # most lines are lexed by one regular expression; the full lexer is the reference
+    from piecs_bayes.gcode._lexer import _LexError, _LineLexer, lex_line
+
+    full = _LineLexer(text)
+    try:
+        full.run()
+    except _LexError:
+        return
+    line = lex_line(text, "\n", 1, None)
+    assert line.words == tuple(full.words) and line.comments == tuple(full.comments)
+    assert line.percent == full.percent
+
+
 def test_round_trip_keeps_odd_bytes_endings_and_blanks():
     raw = b"%\r\nG18 G21\t(tab) \r\n\r\n  g1 x1.50 z-2 f100 ; caf\xe9\rG0 X2\n%"
     text = raw.decode("utf-8", errors="surrogateescape")
