@@ -73,10 +73,8 @@ def report(chains: Counter, limit: int) -> int:
     maximal = [c for c in chains if not any(d != c and d[: len(c)] == c for d in chains)]
     for c in sorted(maximal, key=lambda c: (-len(c), c)):
         print(f"{len(c)}  {' > '.join(c)}")
-    print(
-        f"chains: {len(chains)}, maximal: {len(maximal)}, longest: {len(longest)} "
-        f"packages ({' > '.join(longest)}), returns to a package it left: {len(returns)}"
-    )
+    print(f"chains: {len(chains)}, maximal: {len(maximal)}, longest: {len(longest)} "
+          f"packages ({' > '.join(longest)}), returns to a package it left: {len(returns)}")
     for c in returns:
         print(f"  returns: {' > '.join(c)}")
     return 1 if len(longest) > limit or returns else 0
