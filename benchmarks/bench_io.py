@@ -1,4 +1,4 @@
-"""Probe CSV reading speed: the reader, its row-by-row reference, pandas (issue 16).
+"""Probe CSV and part-program reading speed: the readers and their anchors (issues 16, 38).
 
     .venv/bin/python benchmarks/bench_io.py                 # 1,000,000 rows
     .venv/bin/python benchmarks/bench_io.py --rows 200000 --repeat 5
@@ -15,6 +15,10 @@ it once so that it is in the page cache, then times, side by side in this one ru
 - `read_probe_csv` of the same file with one bad cell at row 500,123 (or the
   last row), which must name that row's line exactly as the row reader does,
   best of `--repeat`.
+
+- `gcode.read_gcode` of a LinuxCNC program of `--blocks` executed blocks (25% of them
+  in a subroutine called with arguments, its words computed from parameters), beside
+  LinuxCNC's `rs274 -g` on the same file (when installed; it also writes its canon).
 
 Prints rows per second of each (wall clock, and CPU time of this process, which a
 busy machine disturbs less) and checks that both readers give identical arrays.

@@ -103,8 +103,17 @@ def _common(p) -> None:
     )
     p.add_argument(
         "--diameter-mode",
-        action="store_true",
-        help="X words are diameters before the first G7/G8 (Fanuc default; LinuxCNC: radius)",
+        action="store_const",
+        const=True,
+        default=None,
+        help="X words are diameters before the first G7/G8 (default: the dialect's: LinuxCNC "
+        "radius, Fanuc/Haas/Okuma diameter)",
+    )
+    p.add_argument(
+        "--dialect",
+        choices=("linuxcnc", "fanuc", "haas", "okuma"),
+        default=None,
+        help="the program's dialect (default: detected from what it contains, and said)",
     )
     p.add_argument("--quiet", "-q", action="store_true", help="print only errors")
 
@@ -112,7 +121,9 @@ def _common(p) -> None:
 def _load(args):
     from ..gcode import read_gcode, read_tool_table
 
-    program = read_gcode(args.program, units=args.units, diameter_mode=args.diameter_mode)
+    program = read_gcode(
+        args.program, args.dialect, units=args.units, diameter_mode=args.diameter_mode
+    )
     tools = None
     if args.tool_table is not None:
         tools = read_tool_table(args.tool_table, units=args.tool_units)
@@ -144,6 +155,17 @@ def cmd_check(args, console) -> int:
 
     program, tools = _load(args)
     console.say(repr(program))
+    d = program.dialect
+    console.say(f"dialect: {d.name} ({d.reason})")
+    repeated = [k + 1 for k, n in enumerate(program.runs) if n > 1 and program.lines[k].words]
+    if repeated or program.computed:
+        console.say(
+            f"  {sum(program.runs)} blocks ran; lines that ran more than once: "
+            f"{_line_list(repeated)}; lines computed from parameters: "
+            f"{_line_list(sorted(program.computed))}"
+        )
+    for note in program.notes:
+        console.say(f"  line {note.line}: {note.word}: {note.text}")
     runs = [ev for ev in program.events if not hasattr(ev, "kind")]
     for ev in runs:
         if ev.setting is None:
@@ -173,12 +195,25 @@ def cmd_check(args, console) -> int:
     return 0
 
 
+def _line_list(lines, most: int = 12) -> str:
+    if not lines:
+        return "none"
+    text = ", ".join(map(str, lines[:most]))
+    return text + (f" and {len(lines) - most} more" if len(lines) > most else "")
+
+
 def _compare_rs274(args, program, tools, console, nose_compensate) -> int:
     from ..errors import InputError
     from ..gcode import rs274_path, run_rs274
 
     if rs274_path() is None:
         raise InputError("rs274 is not installed (Debian package linuxcnc-uspace)")
+    if program.dialect.name != "linuxcnc":
+        raise InputError(
+            f"--rs274 compares with LinuxCNC's interpreter: this program is read as "
+            f"{program.dialect.name}",
+            file=program.name,
+        )
     if args.tool_table is None and any(
         m.comp is not None and m.comp.diameter_mm is None for m in program.moves
     ):
@@ -187,15 +222,34 @@ def _compare_rs274(args, program, tools, console, nose_compensate) -> int:
     if ref.error:
         console.say(f"rs274 stops: {ref.error}")
         return 1
+    if not any(m.comp is not None for m in program.moves):
+        return _agree(console, "the reader's own moves", ref.moves, program.moves, 1e-4)
     resolved = nose_compensate(program, tool_table=tools, nose_radius=args.nose_radius)
     out = run_rs274(resolved.text, tool_table=args.tool_table)
-    if out.error or len(out.moves) != len(ref.moves):
-        console.say(f"rs274 disagrees: {out.error or 'different number of moves'}")
+    if out.error:
+        console.say(f"rs274 disagrees: {out.error}")
+        return 1
+    return _agree(console, "the resolved program's moves", ref.moves, out.moves, None)
+
+
+def _agree(console, what, ref, ours, tol) -> int:
+    """``ours`` against rs274's canonical moves ``ref``: same count, kinds and points."""
+    if len(ours) != len(ref):
+        console.say(f"rs274 disagrees: {len(ref)} canonical moves, {what} {len(ours)}")
         return 1
     dev = 0.0
-    for a, b in zip(ref.moves, out.moves, strict=True):
+    for a, b in zip(ref, ours, strict=True):
+        if (a.kind == "arc") != (b.kind in ("arc", "cw", "ccw")):
+            console.say(f"rs274 disagrees: an arc where {what} has a straight move or back")
+            return 1
         dev = max(dev, *(abs(u - v) for u, v in zip(a.end, b.end, strict=True)))
         if a.center is not None and b.center is not None:
             dev = max(dev, math.dist(a.center, b.center))
-    console.say(f"rs274 agrees: {len(ref.moves)} canonical moves, largest difference {dev:.2e} mm")
+    # rs274 prints 4 decimals in the program's units: 1e-4 in is 2.54e-3 mm
+    if tol is not None and dev > tol * 25.4:
+        console.say(f"rs274 disagrees: {what} are {dev:.2e} mm off its canonical moves")
+        return 1
+    console.say(
+        f"rs274 agrees: {len(ref)} canonical moves, largest difference {dev:.2e} mm ({what})"
+    )
     return 0

@@ -86,6 +86,12 @@ def register(subparsers) -> None:
         default=None,
         help="the probe's calibrated ball radius (mm; default: a marked placeholder)",
     )
+    p.add_argument(
+        "--dialect",
+        choices=("linuxcnc", "fanuc", "haas", "okuma"),
+        default=None,
+        help="the program's dialect (default: detected from what it contains, and said)",
+    )
     p.add_argument("--force", action="store_true", help="write over an existing STUDY")
     p.add_argument("--quiet", "-q", action="store_true", help="print only errors")
     p.set_defaults(func=cmd_init)
@@ -105,8 +111,12 @@ def cmd_init(args, console) -> int:
         tool_table=args.tool_table,
         tool_units=args.tool_units,
         ball_radius_mm=args.ball_radius,
+        dialect=args.dialect,
     )
     c = result.contour
+    dialect = next((s for s in result.content.program if s.key == "dialect"), None)
+    if dialect is not None:
+        console.say(f"{args.program}: read as {dialect.value} ({dialect.comment})")
     console.say(
         f"{args.program}: the finish contour of {c.comp.code} (line {c.comp.line}), "
         f"{c.kind}: {len(c.segments)} features (lead-in line {c.lead_in} and exit line "

@@ -1,4 +1,5 @@
-"""Part programs (G-code, lathe dialect): lossless lexing, modal state, tool tables,
+"""Part programs (G-code; LinuxCNC, Fanuc, Haas and Okuma dialects): lossless lexing,
+control flow and parameters, modal state, tool tables,
 tool-nose compensation (G41/G42), the adjusted finish-cut program (with its traceability
 comment block), the finish contour (a study's profile from the program), the tool that
 cuts the finish pass, canned cycles (G70/G71/G72/G73 expanded into the control's
@@ -27,6 +28,11 @@ from ._cycles import FinishCycle as FinishCycle
 from ._cycles import RoughCycle as RoughCycle
 from ._cycles import cycle_start as cycle_start
 from ._cycles import expand_cycle as expand_cycle
+from ._dialect import DIALECTS as DIALECTS
+from ._dialect import Dialect as Dialect
+from ._dialect import DialectTable as DialectTable
+from ._dialect import detect_dialect as detect_dialect
+from ._dialect import dialect_table as dialect_table
 from ._dprnt import DprntFormat as DprntFormat
 from ._dprnt import dprnt_value as dprnt_value
 from ._gauge_moves import GaugeMove as GaugeMove
@@ -47,22 +53,25 @@ from ._lexer import Word as Word
 from ._lexer import edit_line as edit_line
 from ._lexer import format_number as format_number
 from ._lexer import lex_gcode as lex_gcode
-from ._modal import CompEvent as CompEvent
-from ._modal import CompSetting as CompSetting
-from ._modal import GcodeProgram as GcodeProgram
-from ._modal import LineState as LineState
-from ._modal import Motion as Motion
-from ._modal import ToolWord as ToolWord
-from ._modal import parse_gcode as parse_gcode
-from ._modal import read_gcode as read_gcode
 from ._nosecomp import NoseCompResult as NoseCompResult
 from ._nosecomp import PathMove as PathMove
 from ._nosecomp import compensated_path as compensated_path
 from ._nosecomp import correct_radius_error as correct_radius_error
 from ._nosecomp import nose_compensate as nose_compensate
 from ._nosecomp import tip_offset as tip_offset
+from ._options import STEP_LIMIT as STEP_LIMIT
+from ._options import ReadOptions as ReadOptions
 from ._pattern_repeat import PatternRepeat as PatternRepeat
 from ._pattern_repeat import expand_pattern_repeat as expand_pattern_repeat
+from ._program import CompEvent as CompEvent
+from ._program import CompSetting as CompSetting
+from ._program import GcodeProgram as GcodeProgram
+from ._program import LineState as LineState
+from ._program import Motion as Motion
+from ._program import Note as Note
+from ._program import ToolWord as ToolWord
+from ._read import parse_gcode as parse_gcode
+from ._read import read_gcode as read_gcode
 from ._rs274 import CanonMove as CanonMove
 from ._rs274 import Rs274Result as Rs274Result
 from ._rs274 import rs274_path as rs274_path

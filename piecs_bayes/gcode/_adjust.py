@@ -85,7 +85,8 @@ class ProgramAdjustment:
 
 
 def read_program(program):
-    from ._modal import GcodeProgram, read_gcode
+    from ._program import GcodeProgram
+    from ._read import read_gcode
 
     return program if isinstance(program, GcodeProgram) else read_gcode(program)
 
@@ -321,7 +322,7 @@ def adjust_program(
     **Returns:** a :class:`ProgramAdjustment`; write ``.text`` with
     :func:`~piecs_bayes.io.write_text_atomic` (``protect=[input]``).
     """
-    from ._modal import parse_gcode
+    from ._read import parse_gcode
 
     program = read_program(program)
     name = program.name or "<program>"
@@ -330,15 +331,23 @@ def adjust_program(
             f"the adjusted profile's features {adjusted_profile.ids} differ from the nominal "
             f"ones {nominal_profile.ids}"
         )
+    for ln in sorted({m.line for m in candidates(program)}):
+        why = program.edit_refusal(ln)
+        if why is not None:  # before the mapping: a block that runs twice maps twice
+            raise AnalysisError(
+                f"{name}:{ln}: the adjusted program cannot edit this finish-cut block in "
+                f"place: {why}"
+            )
     bmap = map_blocks_to_profile(program, nominal_profile, tol_mm=tol_mm, mapping=mapping)
     _check_sides(program, nominal_profile, bmap)
     moves = {m.line: m for m in program.moves}
     target = _targets(program, moves, nominal_profile, adjusted_profile, bmap, tol_mm)
     _check_shifts(moves, target, bmap, name, max_correction_mm)
+    _check_editable(program, target, name)
     texts = _rewrite_blocks(program, target)
     new_source = program.source.with_line_texts(texts)
     try:
-        new_program = parse_gcode(new_source.text, name=program.name, **program.options)
+        new_program = parse_gcode(new_source.text, name=program.name, options=program.options)
     except InputError as exc:
         raise AnalysisError(f"the adjusted program is not valid: {exc}") from None
     _check(program, new_program, target, bmap, name, tool_table, nose_radius_mm)
@@ -401,6 +410,23 @@ def _check_shifts(moves, target, bmap, name, max_correction_mm) -> None:
             raise AnalysisError(
                 f"{name}:{ln}: the block{f' of feature {fid!r}' if fid else ''} would move by "
                 f"{shift:.4f} mm, more than the maximum correction {max_correction_mm:g} mm"
+            )
+
+
+def _check_editable(program, lines, name) -> None:
+    """Each block to rewrite must be editable where it stands: it ran once, its words
+    are numbers, it makes one move with X/Z words (not U/W, not a ,C/,R corner)."""
+    for ln in sorted(lines):
+        why = program.edit_refusal(ln)
+        if why is None:
+            letters = {w.letter for w in program.source.line(ln).words}
+            if {"U", "W"} & letters:
+                why = f"line {ln} moves by U/W (incremental words), which are not rewritten yet"
+            elif {",C", ",R"} & letters or len(program.moves_at(ln)) > 1:
+                why = f"line {ln} makes more than one move (a ,C/,R corner)"
+        if why is not None:
+            raise AnalysisError(
+                f"{name}:{ln}: the adjusted program cannot edit this block in place: {why}"
             )
 
 

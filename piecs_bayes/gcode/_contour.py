@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from ..errors import InputError
 from ..geometry import ProfileError, profile_side
-from ._modal import CompSetting, GcodeProgram, Motion
+from ._program import CompSetting, GcodeProgram, Motion
 
 
 @dataclass(frozen=True)

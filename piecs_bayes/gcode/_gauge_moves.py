@@ -360,6 +360,10 @@ def _target(src: SourceLine, st: _State) -> tuple[float, float]:
 
 
 def _block(src: SourceLine, st: _State, name) -> GaugeMove | None:
+    if src.computed or src.assignments or src.oword or src.macro or src.block_delete:
+        raise _err("a gauging program is read block by block: parameters, expressions, "
+                   "O-words, macro statements and block delete are not read here", name,
+                   src.number, src.text)  # fmt: skip
     _comments(src, st, name)
     g, _ms = _codes(src, st, name)
     _modal(g, src, st)

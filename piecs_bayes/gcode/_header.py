@@ -79,11 +79,11 @@ def header_checked(program, texts: Sequence[str]) -> tuple[str, int]:
     """`program`'s text with the comment block, re-read to check that it moves exactly
     as `program` does (lines shifted by the block); returns the text and the block's
     number of lines."""
-    from ._modal import parse_gcode
+    from ._read import parse_gcode
 
     source, n = with_comment_block(program.source, [str(t) for t in texts])
     if n:
-        again = parse_gcode(source.text, name=program.name, **program.options)
+        again = parse_gcode(source.text, name=program.name, options=program.options)
 
         def back(m):
             comp = None if m.comp is None else replace(m.comp, line=m.comp.line - n)

@@ -1,232 +1,149 @@
-"""Modal interpretation of a lathe part program: words -> moves in the XZ half-plane.
+"""The modal state of a lathe control: blocks in, moves in the XZ half-plane out.
 
-[`read_gcode`][] (a file, bytes kept exactly) and [`parse_gcode`][] (a text) keep the
-full modal state the way LinuxCNC's interpreter does and return a [`GcodeProgram`][]
-whose every motion block is a [`Motion`][] in **millimetres, radius X** (``(x, z)``
-points), with its source line, the nose-compensation settings and the tool words in
-force. Anything not understood (threads, other planes, Y/J words, an unknown code) is
-an :class:`~piecs_bayes.errors.InputError` with the file, line number and text: nothing
-is dropped silently. Modal defaults are LinuxCNC's (G8 radius mode, G90, G91.1,
-no motion mode until G0-G3) with G18 assumed; `units`, `diameter_mode` and `start`
-set the state before the program says otherwise. G2 is clockwise and G3
-counter-clockwise in the drawing frame (z right, x up), as LinuxCNC's ``ARC_FEED``
-shows.
+[`ModalMachine`][] executes one [`Block`][] at a time (a source line whose values are
+known: the interpreter evaluated its parameters) under a dialect's table, in the order
+LinuxCNC documents for the words of a block, and collects every move as a
+:class:`~piecs_bayes.gcode.Motion` in **millimetres, radius X**, with its source line.
+It keeps units, diameter or radius X, absolute or incremental axes, arc centres, work
+offsets and coordinate shifts (G10, G54-G59, G92, Fanuc's G50), reference returns
+(G28/G30) and machine-coordinate moves (G53), nose compensation, tools, and records what
+it does not apply (M codes, G10 tool data, spindle clamps) as notes. Anything not
+understood is an :class:`~piecs_bayes.errors.InputError` naming the file, the line, the
+word and why. G2 is clockwise and G3 counter-clockwise in the drawing frame (z right, x
+up), as LinuxCNC's ``ARC_FEED`` shows.
 
-The words understood: docs/models/part_programs.md, "The modal interpreter".
+The words of each dialect: docs/models/part_programs.md, "The modal machine".
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
+from typing import NamedTuple
 
 from ..errors import InputError
-from ._lexer import GcodeText, SourceLine, lex_gcode, read_text_lossless
+from ._dialect import DialectTable
+from ._lexer import SourceLine, code_of
+from ._options import ReadOptions
+from ._params import ParameterError
+from ._program import CompEvent, CompSetting, LineState, Motion, Note, ToolWord
 
 MM_PER_INCH = 25.4
-_G_GROUPS = {
-    "motion": {"G0", "G1", "G2", "G3", "G80"},
-    "plane": {"G18"},
-    "units": {"G20", "G21"},
-    "diameter": {"G7", "G8"},
-    "comp": {"G40", "G41", "G42", "G41.1", "G42.1"},
-    "length": {"G43", "G49"},
-    "coord": {"G54", "G55", "G56", "G57", "G58", "G59"},
-    "path": {"G61", "G61.1", "G64"},
-    "distance": {"G90", "G91"},
-    "arc_distance": {"G90.1", "G91.1"},
-    "feed_mode": {"G94", "G95"},
-    "spindle_mode": {"G96", "G97"},
-    "dwell": {"G4"},
-}
-_G_GROUP_OF = {code: group for group, codes in _G_GROUPS.items() for code in codes}
-_M_GROUPS = {
-    "stop": {"M0", "M1", "M2", "M30"},
-    "toolchange": {"M6"},
-    "spindle": {"M3", "M4", "M5"},
-    "coolant": {"M7", "M8", "M9"},
-}
-_M_GROUP_OF = {code: group for group, codes in _M_GROUPS.items() for code in codes}
-_LETTERS = set("GMNOXZIKRFSTDLPQH")
-_REFUSED = {
-    "G17": "only the XZ plane (G18) is supported for a lathe",
-    "G19": "only the XZ plane (G18) is supported for a lathe",
-    "G93": "inverse-time feed (G93) is not supported",
-}
-_THREAD = (
-    "threading is not understood: a thread is a helix synchronised with the spindle, "
-    "not a contour of lines and arcs"
-)
-_REFUSED.update({code: _THREAD for code in ("G32", "G33", "G33.1", "G76")})
 # Arc tolerances (mm): how far an R arc may fall short of its chord, and how much an
 # I/K arc's start and end radii may differ; chosen to accept what rs274 accepts
 # on the test corpus (0.00005 in; 0.01 mm or 0.001 in times sqrt(2), twice).
 _RADIUS_TOL_MM = 0.00005 * MM_PER_INCH
 _SPIRAL_ABS_MM = {"mm": 2 * 0.01 * math.sqrt(2), "in": 2 * 0.001 * math.sqrt(2) * MM_PER_INCH}
 _SPIRAL_REL = 0.001
+_KIND = {"G0": "rapid", "G1": "feed", "G2": "cw", "G3": "ccw"}
+_LINUXCNC_LETTERS = set("GMNOXZIKRFSTDLPQHE")
+_FANUC_LETTERS = set("GMNOXZUWIKRFSTPQLHE") | {",C", ",R"}
+_M_GROUPS_LINUXCNC = {
+    **dict.fromkeys(("M0", "M1", "M2", "M30", "M60"), "stop"),
+    **dict.fromkeys(("M6", "M61"), "toolchange"),
+    **dict.fromkeys(("M3", "M4", "M5", "M19"), "spindle"),
+    **dict.fromkeys(("M7", "M8", "M9"), "coolant"),
+    **dict.fromkeys(("M48", "M49", "M50", "M51", "M52", "M53"), "override"),
+    **dict.fromkeys(("M62", "M63", "M64", "M65", "M66", "M67", "M68"), "io"),
+    **dict.fromkeys(("M70", "M71", "M72", "M73"), "state"),
+}
+_M_GROUPS_FANUC = {
+    **dict.fromkeys(("M0", "M1", "M2", "M30", "M98", "M99", "M97"), "stop"),
+    **dict.fromkeys(("M3", "M4", "M5"), "spindle"),
+    **dict.fromkeys(("M8", "M9"), "coolant"),
+}
+_WORK_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
+_FANUC_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59")
 
 
-@dataclass(frozen=True)
-class CompSetting:
-    """A G41/G42/G41.1/G42.1 request, as programmed.
+class BlockWord(NamedTuple):
+    """A word of an executed block: its letter, its value now, its text (as written, or
+    the value computed), its index among the source line's words and, for G and M
+    words, its code (``"G1"``)."""
 
-    ``side`` is ``"left"`` or ``"right"`` of travel in the drawing frame.
-    G41/G42 take the radius and orientation from the tool table: ``tool`` is
-    the D word or else the tool in the spindle (None when none was loaded).
-    G41.1/G42.1 carry them: ``diameter_mm`` (the D word) and ``orientation``
-    (the L word, 0 when absent).
-    """
-
-    side: str
-    code: str
-    line: int
-    tool: int | None = None
-    diameter_mm: float | None = None
-    orientation: int | None = None
-
-
-@dataclass(frozen=True)
-class ToolWord:
-    """The T word that put the cutting tool in place, as written.
-
-    ``text`` is the word (``"T0202"``), ``value`` its number, ``line`` its line.
-    ``by`` says what made it the cutting tool: ``"M6"`` (a tool change, LinuxCNC
-    style: the T word only selects) or ``"T"`` (a program without any M6, turret
-    style: the T word itself indexes the turret and applies its offsets, as on
-    Fanuc-style lathes). What the number means is read by
-    :func:`~piecs_bayes.gcode.tool_call`.
-    """
-
+    letter: str
+    value: float
     text: str
-    value: int
-    line: int
-    by: str
+    index: int
+    code: str = ""
+
+    @classmethod
+    def of(cls, letter: str, value: float, text: str, index: int) -> BlockWord:
+        return cls(letter, value, text, index, code_of(letter, value) if letter in "GM" else "")
 
 
 @dataclass(frozen=True)
-class CompEvent:
-    """Compensation switched on (``setting``) or off (``setting is None``: G40) at ``line``."""
+class Block:
+    """A source line as it runs this time: its words with their values known."""
 
-    line: int
-    setting: CompSetting | None
+    line: SourceLine
+    words: tuple[BlockWord, ...]
 
-
-@dataclass(frozen=True)
-class Motion:
-    """One programmed move: ``kind`` in ``"rapid" | "feed" | "cw" | "ccw"``.
-
-    Points are ``(x, z)`` in mm with x a radius; ``center`` is set for arcs
-    (as programmed: for I/K arcs the end may sit up to LinuxCNC's tolerance
-    off the circle). ``comp`` is the compensation in force, ``entry`` marks
-    the first move after it was switched on.
-    """
-
-    kind: str
-    start: tuple[float, float]
-    end: tuple[float, float]
-    line: int
-    center: tuple[float, float] | None = None
-    comp: CompSetting | None = None
-    entry: bool = False
-
-    @property
-    def is_arc(self) -> bool:
-        return self.kind in ("cw", "ccw")
-
-    @property
-    def ccw(self) -> bool:
-        return self.kind == "ccw"
-
-    @property
-    def length(self) -> float:
-        return math.dist(self.start, self.end)
-
-    def exact_center(self) -> tuple[float, float]:
-        """The centre moved onto the chord's perpendicular bisector (nearest point), so
-        that start and end are exactly equidistant from it."""
-        (x0, z0), (x1, z1), (cx, cz) = self.start, self.end, self.center
-        mx, mz = (x0 + x1) / 2, (z0 + z1) / 2
-        dx, dz = x1 - x0, z1 - z0
-        d2 = dx * dx + dz * dz
-        if d2 == 0.0:
-            return self.center
-        t = ((cx - mx) * dx + (cz - mz) * dz) / d2
-        return (cx - t * dx, cz - t * dz)
-
-    def to_feature(self, id: str, *, side: int = -1, tolerance=(-0.01, 0.01)):
-        """This move as a :class:`~piecs_bayes.geometry.Line` or
-        :class:`~piecs_bayes.geometry.Arc` (G3 -> ``ccw=True``)."""
-        from ..geometry import Arc, Line
-
-        if self.is_arc:
-            return Arc(id, self.start, self.end, self.exact_center(), self.ccw, side, tolerance)
-        if self.length == 0.0:
-            raise InputError("a zero-length move is not a feature", line=self.line, feature=id)
-        return Line(id, self.start, self.end, side, tolerance)
+    @classmethod
+    def plain(cls, line: SourceLine) -> Block:
+        """The block of a line whose words are all plain numbers: its words as lexed
+        (they have the letter, value, text and code a block word has)."""
+        return cls(line, line.words)
 
 
-@dataclass(frozen=True)
-class LineState:
-    """Modal state in force for the motion of a line (after its own G codes)."""
+@dataclass
+class _Modes:
+    """The modal state that M70-M73 save and restore."""
 
     units: str
     diameter: bool
     absolute: bool
     arc_absolute: bool
-    motion: str | None
-    comp: CompSetting | None
-    tool: ToolWord | None = None
-    """The T word of the cutting tool (None before any)."""
+    feed_per_rev: bool
 
 
-@dataclass(frozen=True)
-class GcodeProgram:
-    """A read program: its lossless text, its moves, events and per-line modal states."""
+class ModalMachine:
+    """Executes blocks (module docstring); ``err`` builds the errors the reader raises.
 
-    source: GcodeText
-    moves: tuple[Motion, ...]
-    events: tuple[Motion | CompEvent, ...]
-    states: tuple[LineState, ...]
-    options: dict = field(default_factory=dict, compare=False)
-    """The reading options (``units``, ``diameter_mode``, ``start``), to read an edit alike."""
+    **Arguments:**
 
-    @property
-    def name(self) -> str | None:
-        return self.source.name
+    - `name`: the program's name for messages.
+    - `table`: the dialect's :class:`~piecs_bayes.gcode.DialectTable`.
+    - `options`: the resolved :class:`~piecs_bayes.gcode.ReadOptions`.
+    - `turret`: T words change tools without M6 (Fanuc-style; a LinuxCNC program
+      without any M6).
+    """
 
-    @property
-    def text(self) -> str:
-        return self.source.text
-
-    @property
-    def lines(self) -> tuple[SourceLine, ...]:
-        return self.source.lines
-
-    def state(self, line: int) -> LineState:
-        return self.states[line - 1]
-
-    def moves_at(self, line: int) -> tuple[Motion, ...]:
-        return tuple(m for m in self.moves if m.line == line)
-
-    def __repr__(self) -> str:
-        comp = sum(1 for m in self.moves if m.comp is not None)
-        return (
-            f"GcodeProgram({self.name or '<text>'}: {len(self.lines)} lines, "
-            f"{len(self.moves)} moves, {comp} compensated)"
-        )
-
-
-class _Reader:
-    def __init__(self, src: GcodeText, units: str, diameter: bool, start):
-        self.src = src
-        self.units0, self.diameter0, self.start0 = units, diameter, tuple(start)
-        self.units = units
-        self.diameter = diameter
+    def __init__(self, name: str | None, table: DialectTable, options: ReadOptions, turret: bool):
+        self.name = name or "<program>"
+        self.table = table
+        self.dialect = table.name
+        self.fanuc = table.name in ("fanuc", "haas")
+        self.letters = _LINUXCNC_LETTERS if table.name == "linuxcnc" else _FANUC_LETTERS
+        if table.name == "okuma":
+            self.letters = (_FANUC_LETTERS - {"U", "W", ",C", ",R"}) | {"D"}
+        self.m_groups = _M_GROUPS_LINUXCNC if table.name == "linuxcnc" else _M_GROUPS_FANUC
+        self.units = options.units
+        self.diameter = bool(options.diameter_mode)
         self.absolute = True
         self.arc_absolute = False
+        self.feed_per_rev = table.feed_per_rev
         self.motion: str | None = None
-        self.pos = (float(start[0]), float(start[1]))
+        self.pos = tuple(options.start)
+        zero = options.machine_zero
+        # machine coordinates of each work system's zero (NaN: not known)
+        self.base = (-zero[0], -zero[1]) if zero is not None else (math.nan, math.nan)
+        self.system = "G54"
+        self.offsets: dict[str, tuple[float, float]] = {}
+        self.ext = (0.0, 0.0)
+        self.shift = (0.0, 0.0)
+        self.saved_shift = (0.0, 0.0)
+        # reference positions in machine coordinates: LinuxCNC's #5161.. / #5181.. (0 in
+        # rs274 without a parameter file); Fanuc's first reference is the machine zero
+        nan = (math.nan, math.nan)
+        self.homes = {"G28": (0.0, 0.0), "G30": (0.0, 0.0) if table.name == "linuxcnc" else nan}
+        self.feed = 0.0
+        self.speed = 0.0
+        self.spindle = "M5"
+        self.coolant: set[str] = set()
+        self.length_on = False
+        self.css = False
+        self.return_mode = "G98"
         self.comp: CompSetting | None = None
         self.first_after_on = False
         self.just_off = False
@@ -234,204 +151,716 @@ class _Reader:
         self.tool: int | None = None
         self.t_selected: ToolWord | None = None
         self.t_cutting: ToolWord | None = None
-        # a program without M6 changes tools with the T word alone (turret lathes)
-        self.turret = not any(
-            w.letter == "M" and w.code == "M6" for ln in src.lines for w in ln.words
-        )
+        self.turret = turret
+        self.saved: _Modes | None = None
+        self.corner: tuple[Motion, BlockWord] | None = None
         self.moves: list[Motion] = []
         self.events: list[Motion | CompEvent] = []
-        self.states: list[LineState] = []
+        self.notes: list[Note] = []
+
+    # -- helpers --------------------------------------------------------------------------
 
     def err(self, line: SourceLine, msg: str) -> InputError:
-        return InputError(
-            f"{msg}: {line.text.strip()!r}", file=self.src.name or "<program>", line=line.number
-        )
+        return InputError(f"{msg}: {line.text.strip()!r}", file=self.name, line=line.number)
+
+    def note(self, line: int, word: str, text: str) -> None:
+        self.notes.append(Note(line, word, text))
 
     def length(self, value: float) -> float:
         return value * (MM_PER_INCH if self.units == "in" else 1.0)
 
-    def run(self) -> GcodeProgram:
-        for line in self.src.lines:
-            self.block(line)
-            self.states.append(
-                LineState(
-                    self.units,
-                    self.diameter,
-                    self.absolute,
-                    self.arc_absolute,
-                    self.motion,
-                    self.comp,
-                    self.t_cutting,
-                )
-            )
-        options = {"units": self.units0, "diameter_mode": self.diameter0, "start": self.start0}
-        return GcodeProgram(
-            self.src, tuple(self.moves), tuple(self.events), tuple(self.states), options
+    def x_length(self, value: float) -> float:
+        return self.length(value) / (2.0 if self.diameter else 1.0)
+
+    def work(self, system: str | None = None) -> tuple[float, float]:
+        """Machine coordinates of the program's zero in ``system`` (NaN: not known)."""
+        ox, oz = self.offsets.get(system or self.system, self.base)
+        return (ox + self.ext[0] + self.shift[0], oz + self.ext[1] + self.shift[1])
+
+    def to_program(self, machine: tuple[float, float]) -> tuple[float, float]:
+        wx, wz = self.work()
+        return (machine[0] - wx, machine[1] - wz)
+
+    def _reframe(self, line, old: tuple[float, float], what: str) -> None:
+        """The program's zero moved from ``old`` to ``work()`` (machine coordinates): the
+        tool stays where it is, its program coordinates change."""
+        new = self.work()
+        if old == new:
+            return
+        self.pos = (self.pos[0] + old[0] - new[0], self.pos[1] + old[1] - new[1])
+        if any(math.isnan(v) for v in self.pos):
+            self.note(line.number, what, "the work offsets are not known: the position is "
+                      "unknown until X and Z are programmed absolutely")  # fmt: skip
+
+    def state(self) -> LineState:
+        return LineState(
+            self.units,
+            self.diameter,
+            self.absolute,
+            self.arc_absolute,
+            self.motion,
+            self.comp,
+            self.t_cutting,
+            self.feed_per_rev,
         )
 
-    def block(self, line: SourceLine) -> None:
-        if line.percent or not line.words:
-            return
-        seen: dict[str, object] = {}
-        gcodes: dict[str, str] = {}
-        mcodes: dict[str, str] = {}
-        for w in line.words:  # refused codes first: a thread cycle's J word says less
-            if w.letter == "G" and w.code in _REFUSED:
-                raise self.err(line, f"{w.code}: {_REFUSED[w.code]}")
-        for k, w in enumerate(line.words):
-            if w.letter not in _LETTERS:
-                hint = " (a lathe program lives in the XZ plane)" if w.letter in "YJ" else ""
-                raise self.err(line, f"word {w} is not understood{hint}")
-            if w.letter == "G":
-                code = w.code
-                group = _G_GROUP_OF.get(code)
-                if group is None:
-                    raise self.err(line, f"{code} is not understood")
-                if group in gcodes:
-                    raise self.err(
-                        line, f"{gcodes[group]} and {code} in one block (same modal group)"
-                    )
-                gcodes[group] = code
-            elif w.letter == "M":
-                code = w.code
-                group = _M_GROUP_OF.get(code)
-                if group is None:
-                    raise self.err(line, f"{code} is not understood")
-                if group in mcodes:
-                    raise self.err(
-                        line, f"{mcodes[group]} and {code} in one block (same modal group)"
-                    )
-                mcodes[group] = code
-            else:
-                if w.letter in seen:
-                    raise self.err(line, f"word {w.letter} appears twice")
-                if w.letter == "O" and k != 0:
-                    raise self.err(line, "an O number must be the first word of its line")
-                seen[w.letter] = w.value
-        self.execute(line, gcodes, mcodes, seen)
+    def save_modes(self) -> _Modes:
+        return _Modes(
+            self.units, self.diameter, self.absolute, self.arc_absolute, self.feed_per_rev
+        )
 
-    def execute(self, line, gcodes, mcodes, w) -> None:
-        if "T" in w:
-            if w["T"] < 0 or w["T"] != int(w["T"]):
-                raise self.err(line, "T must be a whole number >= 0")
-            self.selected = int(w["T"])
-            by = "T" if self.turret else "M6"
-            self.t_selected = ToolWord(f"T{line.word('T').text}", self.selected, line.number, by)
-            if self.turret:
-                self.t_cutting = self.t_selected
-        if "toolchange" in mcodes:
-            if self.comp is not None:
-                raise self.err(line, "cannot change tools with compensation on (G40 first)")
-            if self.selected is None:
-                raise self.err(line, "M6 with no tool selected (T word)")
-            self.tool = self.selected
-            self.t_cutting = self.t_selected
-        if "dwell" in gcodes and "P" not in w:
-            raise self.err(line, "G4 needs a P word (seconds)")
-        if "P" in w and "dwell" not in gcodes and gcodes.get("path") != "G64":
-            raise self.err(line, "a P word is only understood with G4 or G64")
-        if "Q" in w and gcodes.get("path") != "G64":
-            raise self.err(line, "a Q word is only understood with G64")
-        if "H" in w and gcodes.get("length") != "G43":
-            raise self.err(line, "an H word is only understood with G43")
-        units = gcodes.get("units")
-        if units:
-            self.units = "in" if units == "G20" else "mm"
-        dia = gcodes.get("diameter")
-        if dia:
-            self.diameter = dia == "G7"
-        comp = gcodes.get("comp")
-        if "D" in w and comp not in ("G41", "G42", "G41.1", "G42.1"):
-            raise self.err(line, "a D word is only understood with G41/G42/G41.1/G42.1")
-        if "L" in w and comp not in ("G41.1", "G42.1"):
-            raise self.err(line, "an L word is only understood with G41.1/G42.1")
-        if comp == "G40":
-            self.just_off = self.comp is not None
-            self.comp = None
-            self.events.append(CompEvent(line.number, None))
-        elif comp:
-            self.comp_on(line, comp, w)
-        if gcodes.get("distance"):
-            self.absolute = gcodes["distance"] == "G90"
-        if gcodes.get("arc_distance"):
-            self.arc_absolute = gcodes["arc_distance"] == "G90.1"
+    def restore_modes(self, modes: _Modes) -> None:
+        self.units, self.diameter = modes.units, modes.diameter
+        self.absolute, self.arc_absolute = modes.absolute, modes.arc_absolute
+        self.feed_per_rev = modes.feed_per_rev
+
+    def finish(self) -> None:
+        """The program ended: a ,C/,R corner still waiting for its next move is an error."""
+        if self.corner is not None:
+            m, w = self.corner
+            raise InputError(
+                f"{w.letter}{w.text} on line {m.line} has no next move to make its corner with",
+                file=self.name,
+                line=m.line,
+            )
+
+    # -- predefined parameters --------------------------------------------------------------
+
+    def predefined(self, ref) -> float | None:
+        """The value of a parameter the control computes (None: not one of them)."""
+        scale = 1.0 / MM_PER_INCH if self.units == "in" else 1.0
+        if isinstance(ref, str):
+            return self._named(ref, scale)
+        if self.dialect == "linuxcnc":
+            return self._linuxcnc_numbered(ref, scale)
+        return self._fanuc_numbered(ref, scale)
+
+    def _program_pos(self, scale: float) -> tuple[float, float]:
+        return (self.pos[0] * scale, self.pos[1] * scale)
+
+    def _named(self, name: str, scale: float) -> float | None:
+        if name.startswith(("_ini[", "_hal[")):
+            raise ParameterError(f"#<{name}> (the machine's INI or HAL) has no value here")
+        x, z = self._program_pos(scale)
+        motion = {None: 800.0, "G0": 0.0, "G1": 10.0, "G2": 20.0, "G3": 30.0}[self.motion]
+        comp = 400.0
+        if self.comp is not None:
+            comp = {"G41": 410.0, "G41.1": 411.0, "G42": 420.0, "G42.1": 421.0}[self.comp.code]
+        values = {
+            "_x": x,
+            "_z": z,
+            "_abs_x": self.pos[0] * scale,
+            "_abs_z": self.pos[1] * scale,
+            **dict.fromkeys(("_y", "_a", "_b", "_c", "_u", "_v", "_w"), 0.0),
+            **dict.fromkeys(("_abs_y", "_abs_a", "_abs_b", "_abs_c"), 0.0),
+            "_imperial": float(self.units == "in"),
+            "_metric": float(self.units == "mm"),
+            "_absolute": float(self.absolute),
+            "_incremental": float(not self.absolute),
+            "_lathe_diameter_mode": float(self.diameter),
+            "_lathe_radius_mode": float(not self.diameter),
+            "_ijk_absolute_mode": float(self.arc_absolute),
+            "_ijk_incremental_mode": float(not self.arc_absolute),
+            "_motion_mode": motion,
+            "_plane": 180.0,
+            "_ccomp": comp,
+            "_feed": self.feed,
+            "_rpm": self.speed,
+            "_current_tool": float(self.tool or 0),
+            "_current_pocket": float(self.tool or 0),
+            "_selected_tool": float(self.selected if self.selected is not None else -1),
+            "_selected_pocket": float(self.selected if self.selected is not None else -1),
+            "_spindle_on": float(self.spindle in ("M3", "M4")),
+            "_spindle_cw": float(self.spindle == "M3"),
+            "_spindle_css_mode": float(self.css),
+            "_spindle_rpm_mode": float(not self.css),
+            "_mist": float("M7" in self.coolant),
+            "_flood": float("M8" in self.coolant),
+            "_coord_system": 10.0 * float(self.system[1:]),
+            "_tool_offset": float(self.length_on),
+            "_units_per_minute": float(not self.feed_per_rev),
+            "_units_per_rev": float(self.feed_per_rev),
+            "_inverse_time": 0.0,
+            "_retract_r_clear": float(self.return_mode == "G99"),
+            "_retract_old_z": float(self.return_mode == "G98"),
+            **dict.fromkeys(
+                ("_speed_override", "_feed_override", "_adaptive_feed", "_feed_hold"), 1.0
+            ),
+            "_task": 0.0,
+            "_vmajor": 2.9,  # the LinuxCNC version whose rules the reader follows
+            "_vminor": 0.0,
+            "_remap_level": 0.0,
+        }
+        return values.get(name)
+
+    def _linuxcnc_numbered(self, n: int, scale: float) -> float | None:
+        axis = {0: 0, 2: 1}  # X and Z among X Y Z A B C U V W
+        if 5161 <= n <= 5169 or 5181 <= n <= 5189:
+            home = self.homes["G28" if n < 5170 else "G30"]
+            k = (n - 5161) % 20
+            return home[axis[k]] * scale if k in axis else 0.0
+        if 5211 <= n <= 5219:
+            k = n - 5211
+            return self.shift[axis[k]] * scale if k in axis else 0.0
+        if n == 5210:
+            return float(self.shift != (0.0, 0.0))
+        if n == 5220:
+            return float(_WORK_SYSTEMS.index(self.system) + 1)
+        if 5221 <= n <= 5390:
+            system, k = divmod(n - 5221, 20)
+            off = self.offsets.get(_WORK_SYSTEMS[system], self.base)
+            if k in axis and math.isnan(off[axis[k]]):
+                raise ParameterError(f"#{n}: the work offset is not known")
+            return off[axis[k]] * scale if k in axis else 0.0
+        if n == 5400:
+            return float(self.tool or 0)
+        if 5401 <= n <= 5413:
+            return 0.0  # tool-table data: the standalone interpreter's empty table
+        if 5420 <= n <= 5428:
+            k = n - 5420
+            x, z = self._program_pos(scale)
+            return (x, z)[axis[k]] if k in axis else 0.0
+        if 5061 <= n <= 5070 or n == 5399:
+            raise ParameterError(f"#{n} (a probe or input result) has no value when only reading")
+        return None
+
+    def _fanuc_numbered(self, n: int, scale: float) -> float | None:
+        if 4001 <= n <= 4130:
+            modal = {
+                4001: float((self.motion or "G0")[1:]),
+                4005: 99.0 if self.feed_per_rev else 98.0,
+                4006: 20.0 if self.units == "in" else 21.0,
+                4007: float((self.comp.code if self.comp else "G40")[1:3]),
+                4014: float(self.system[1:]),
+                4109: self.feed,
+                4119: self.speed,
+                4120: float(self.t_cutting.value if self.t_cutting else 0),
+            }
+            if n in modal:
+                return modal[n]
+        if n in (5001, 5002, 5041, 5042):
+            x, z = self._program_pos(scale)
+            return (x * (2.0 if self.diameter else 1.0)) if n % 2 else z
+        if n >= 1000:
+            raise ParameterError(f"system variable #{n} has no value when a program is only read")
+        return None
+
+    # -- a block -----------------------------------------------------------------------------
+
+    def execute(self, block: Block) -> None:
+        line = block.line
+        gcodes, mcodes, w = self._sort(block)
+        if self.corner is not None and "comp" in gcodes:
+            raise self.err(line, "a ,C/,R corner cannot end where compensation changes")
+        self._settings(line, gcodes, mcodes, w)
+        nonmodal = gcodes.get("nonmodal")
         if gcodes.get("motion"):
             self.motion = None if gcodes["motion"] == "G80" else gcodes["motion"]
-        has_axis = "X" in w or "Z" in w
+        axes = [k for k in ("X", "Z", "U", "W") if k in w]  # those a setting took are gone
+        if nonmodal in ("G28", "G30"):
+            self._reference(line, nonmodal, w, axes)
+            axes = []
         arc_words = [k for k in ("I", "K", "R") if k in w]
-        if has_axis:
+        if axes:
             if self.motion is None:
                 raise self.err(line, "axis words with no motion mode (G0/G1/G2/G3) in force")
-            self.move(line, w)
+            self._move(line, w, machine=nonmodal == "G53")
+        elif nonmodal == "G53":
+            raise self.err(line, "G53 needs the axes to move (X/Z)")
         elif arc_words:
             raise self.err(line, f"{'/'.join(arc_words)} without an arc end point (X/Z)")
         if arc_words and self.motion not in ("G2", "G3"):
             raise self.err(line, f"{'/'.join(arc_words)} words are only understood with G2/G3")
+        if (",C" in w or ",R" in w) and not axes:
+            raise self.err(line, ",C/,R needs a G1 move in its block")
+        self._stops(line, mcodes)
 
-    def comp_on(self, line, code, w) -> None:
+    def _sort(self, block: Block):
+        """G codes by group, M codes by group and the other words by letter (checked)."""
+        line = block.line
+        table = self.table
+        gcodes: dict[str, str] = {}
+        mcodes: dict[str, str] = {}
+        w: dict[str, BlockWord] = {}
+        for word in block.words:  # refused codes first: a thread cycle's J word says less
+            if word.letter == "G" and word.code in table.refused:
+                raise self.err(line, f"{word.code}: {table.refused[word.code]}")
+        for k, word in enumerate(block.words):
+            letter = word.letter
+            if letter not in self.letters:
+                raise self.err(
+                    line, f"word {letter}{word.text} is not understood{_hint(self, letter)}"
+                )
+            if letter == "G":
+                code = word.code
+                group = table.groups.get(code)
+                if group is None:
+                    raise self.err(line, f"{code} is not understood")
+                if group in gcodes and gcodes[group] != code:
+                    if table.same_group == "refuse" or group == "nonmodal":
+                        raise self.err(
+                            line, f"{gcodes[group]} and {code} in one block (same modal group)"
+                        )
+                    self.note(
+                        line.number,
+                        f"{gcodes[group]} {code}",
+                        f"two codes of one group in a block: {code} (the last) is valid",
+                    )
+                gcodes[group] = code
+            elif letter == "M":
+                code = word.code
+                group = self.m_groups.get(code)
+                if group is None:
+                    if self.table.m_codes is not None and code not in self.table.m_codes:
+                        raise self.err(line, f"{code} is not understood")
+                    group = code  # recorded, machine-specific
+                if group in mcodes:
+                    if group == "coolant" and {mcodes[group], code} == {"M7", "M8"}:
+                        group = "coolant2"
+                    else:
+                        raise self.err(
+                            line, f"{mcodes[group]} and {code} in one block (same modal group)"
+                        )
+                mcodes[group] = code
+            else:
+                if letter in w:
+                    raise self.err(line, f"word {letter} appears twice")
+                if letter == "O" and k != 0:
+                    raise self.err(line, "an O number must be the first word of its line")
+                w[letter] = word
+        if "X" in w and "U" in w or "Z" in w and "W" in w:
+            raise self.err(line, "X and U (or Z and W) in one block: one axis, two targets")
+        return gcodes, mcodes, w
+
+    def _settings(self, line: SourceLine, gcodes, mcodes, w) -> None:
+        """Everything of a block but its motion and its stops, in LinuxCNC's order."""
+        n = line.number
+        nonmodal = gcodes.get("nonmodal")
+        self._check_letters(line, gcodes, mcodes, w)
+        if "feed_mode" in gcodes:
+            code = gcodes["feed_mode"]
+            self.feed_per_rev = code in ("G95", "G99")
+        if "F" in w:
+            self.feed = w["F"].value
+        if "S" in w and nonmodal != "G50":
+            self.speed = w["S"].value
+        if "T" in w:
+            self._t_word(line, w["T"])
+        if "toolchange" in mcodes:
+            self._tool_change(line, mcodes["toolchange"], w)
+        if "spindle" in mcodes:
+            self.spindle = mcodes["spindle"]
+        for key in ("coolant", "coolant2"):
+            if key in mcodes:
+                code = mcodes[key]
+                self.coolant = set() if code == "M9" else self.coolant | {code}
+        if "state" in mcodes:
+            self._state_codes(line, mcodes["state"])
+        for group, code in mcodes.items():
+            if group not in ("stop", "toolchange", "spindle", "coolant", "coolant2", "state"):
+                self.note(n, code, "recorded (no motion)")
+        if "spindle_mode" in gcodes:
+            self.css = gcodes["spindle_mode"] == "G96"
+        if nonmodal == "G50" and "S" in w:
+            self.note(n, f"G50 S{w['S'].text}", "spindle speed clamp recorded")
+        if nonmodal == "G4":
+            self._dwell(line, w)
+        if "units" in gcodes:
+            self.units = "in" if gcodes["units"] == "G20" else "mm"
+        if "diameter" in gcodes:
+            self.diameter = gcodes["diameter"] == "G7"
+        comp = gcodes.get("comp")
+        if comp == "G40":
+            self.just_off = self.comp is not None
+            self.comp = None
+            self.events.append(CompEvent(n, None))
+        elif comp:
+            self._comp_on(line, comp, w)
+        if "length" in gcodes:
+            self.length_on = gcodes["length"] != "G49"
+            if gcodes["length"] in ("G43.1", "G43.2"):
+                for k in ("X", "Z"):
+                    w.pop(k, None)
+                self.note(n, gcodes["length"], "tool length offset recorded, not applied")
+        if "coord" in gcodes and gcodes["coord"] != self.system:
+            old = self.work()
+            self.system = gcodes["coord"]
+            self._reframe(line, old, self.system)
+        if "distance" in gcodes:  # (path control G61/G64, G103, G187: not the path's shape)
+            self.absolute = gcodes["distance"] == "G90"
+        if "arc_distance" in gcodes:
+            self.arc_absolute = gcodes["arc_distance"] == "G90.1"
+        if "return_mode" in gcodes:
+            self.return_mode = gcodes["return_mode"]
+        if nonmodal == "G10":
+            self._g10(line, w)
+        elif nonmodal in ("G92", "G50") and any(k in w for k in "XZUW"):
+            self._set_coordinates(line, nonmodal, w)
+        elif nonmodal in ("G92.1", "G92.2", "G92.3"):
+            old = self.work()
+            if nonmodal == "G92.1":
+                self.saved_shift = (0.0, 0.0)
+            self.shift = self.saved_shift if nonmodal == "G92.3" else (0.0, 0.0)
+            self._reframe(line, old, nonmodal)
+        elif nonmodal in ("G28.1", "G30.1"):
+            wx, wz = self.work()
+            self.homes[nonmodal[:3]] = (self.pos[0] + wx, self.pos[1] + wz)
+
+    def _check_letters(self, line, gcodes, mcodes, w) -> None:
+        nonmodal = gcodes.get("nonmodal")
+        comp = gcodes.get("comp")
+        m = set(mcodes.values())
+        linuxcnc = self.table.name == "linuxcnc"
+        p_ok = nonmodal in ("G4", "G10") or gcodes.get("path") == "G64"
+        p_ok = p_ok or bool(
+            m & {"M98", "M99", "M97", "M62", "M63", "M64", "M65", "M66", "M67", "M68"}
+        )
+        if "P" in w and not p_ok:
+            what = "G4, G10 or G64" if linuxcnc else "G4, G10, M98, M99 or M97"
+            raise self.err(line, f"a P word is only understood with {what}")
+        q_ok = gcodes.get("path") == "G64" or nonmodal == "G10" or "M61" in m or "M66" in m
+        if "Q" in w and not q_ok:
+            raise self.err(
+                line, "a Q word is only understood with G64" + ("" if linuxcnc else " or G10")
+            )
+        if "H" in w and gcodes.get("length") != "G43":
+            raise self.err(line, "an H word is only understood with G43")
+        if "E" in w and not m & {"M67", "M68"}:
+            raise self.err(line, "an E word (thread lead, analog output) is not understood here")
+        if "L" in w and not (comp in ("G41.1", "G42.1") or nonmodal == "G10" or m & {"M98", "M66"}):
+            raise self.err(line, "an L word is only understood with G41.1/G42.1, G10 or M98")
+        if "D" in w and not (
+            comp in ("G41", "G42", "G41.1", "G42.1") or gcodes.get("spindle_mode") == "G96"
+        ):
+            raise self.err(line, "a D word is only understood with G41/G42/G41.1/G42.1 or G96")
+
+    def _dwell(self, line, w) -> None:
+        if self.table.name == "linuxcnc":
+            if "P" not in w:
+                raise self.err(line, "G4 needs a P word (seconds)")
+            return
+        if not ({"P", "X", "U"} & set(w)):
+            raise self.err(line, "G04 needs the dwell time (P, X or U)")
+        for k in ("X", "U"):
+            w.pop(k, None)  # Fanuc G04 X1.5 / U1.5: seconds, not an axis
+
+    def _t_word(self, line: SourceLine, t: BlockWord) -> None:
+        if t.value < 0 or t.value != int(t.value):
+            raise self.err(line, "T must be a whole number >= 0")
+        self.selected = int(t.value)
+        by = "T" if self.turret else "M6"
+        self.t_selected = ToolWord(f"T{t.text}", self.selected, line.number, by)
+        if self.turret:
+            self.t_cutting = self.t_selected
+            self.tool = self.selected
+
+    def _tool_change(self, line, code, w) -> None:
+        if code == "M61":
+            if "Q" not in w:
+                raise self.err(line, "M61 needs a Q word (the tool)")
+            self.tool = int(w["Q"].value)
+            self.note(line.number, "M61", f"tool {self.tool} set as loaded")
+            return
+        if self.comp is not None:
+            raise self.err(line, "cannot change tools with compensation on (G40 first)")
+        if self.selected is None:
+            raise self.err(line, "M6 with no tool selected (T word)")
+        self.tool = self.selected
+        self.t_cutting = self.t_selected
+
+    def _state_codes(self, line, code) -> None:
+        if code in ("M70", "M73"):
+            self.saved = self.save_modes()
+            if code == "M73":
+                self.note(line.number, code, "modal state saved, restored when the call returns")
+        elif code == "M71":
+            self.saved = None
+        elif code == "M72":
+            if self.saved is None:
+                raise self.err(line, "M72 with no state saved (M70 first)")
+            self.restore_modes(self.saved)
+
+    def _comp_on(self, line, code, w) -> None:
         if self.comp is not None:
             raise self.err(line, f"{code} while compensation is already on (G40 first)")
         side = "left" if code.startswith("G41") else "right"
         if code.endswith(".1"):
             if "D" not in w:
                 raise self.err(line, f"{code} needs a D word (tool diameter)")
-            orient = int(w["L"]) if "L" in w else 0
-            if "L" in w and (w["L"] != orient or not 0 <= orient <= 9):
-                raise self.err(line, f"L must be a tool orientation 0-9, got {w['L']:g}")
-            setting = CompSetting(side, code, line.number, None, self.length(w["D"]), orient)
+            orient = int(w["L"].value) if "L" in w else 0
+            if "L" in w and (w["L"].value != orient or not 0 <= orient <= 9):
+                raise self.err(line, f"L must be a tool orientation 0-9, got {w['L'].value:g}")
+            setting = CompSetting(side, code, line.number, None, self.length(w["D"].value), orient)
         else:
-            tool = self.tool
+            # the tool an M6 loaded; a turret-style T word leaves it to the program's reader
+            # (`finish_cut_tools`: Tttoo is a tool and an offset, not a tool-table entry)
+            tool = None if self.turret else self.tool
             if "D" in w:
-                if w["D"] < 0 or abs(w["D"] - round(w["D"])) >= 1e-4:
+                d = w["D"].value
+                if d < 0 or abs(d - round(d)) >= 1e-4:
                     raise self.err(line, f"{code} needs D to be a tool number (whole, >= 0)")
-                tool = int(round(w["D"]))
+                tool = int(round(d))
             setting = CompSetting(side, code, line.number, tool)
         self.comp = setting
         self.first_after_on = True
         self.events.append(CompEvent(line.number, setting))
 
-    def move(self, line, w) -> None:
-        x0, z0 = self.pos
-        x, z = x0, z0
+    # -- coordinates ---------------------------------------------------------------------
+
+    def _g10(self, line, w) -> None:
+        n = line.number
+        lw = w.get("L")
+        level = int(lw.value) if lw is not None else None
+        if level in (2, 20):
+            if "P" not in w:
+                raise self.err(line, f"G10 L{level} needs P (the coordinate system)")
+            p = int(w["P"].value)
+            systems = _WORK_SYSTEMS if self.table.name == "linuxcnc" else _FANUC_SYSTEMS
+            if p == 0 and self.table.name == "linuxcnc":
+                system = self.system
+            elif p == 0:
+                system = "EXT"
+            elif 1 <= p <= len(systems):
+                system = systems[p - 1]
+            else:
+                raise self.err(line, f"G10 L{level} P{p}: no such coordinate system")
+            if "R" in w and w["R"].value != 0:
+                raise self.err(line, "G10 with a rotation (R) is not read")
+            before = self.work()
+            ox, oz = self.ext if system == "EXT" else self.offsets.get(system, self.base)
+            if level == 2:
+                x = self.x_length(w["X"].value) if "X" in w else ox
+                z = self.length(w["Z"].value) if "Z" in w else oz
+            else:  # L20: the current position gets the coordinates given, in that system
+                wx, wz = self.work()
+                mx, mz = self.pos[0] + wx, self.pos[1] + wz
+                ex, ez = (0.0, 0.0) if system == "EXT" else self.ext
+                x = mx - ex - self.shift[0] - self.x_length(w["X"].value) if "X" in w else ox
+                z = mz - ez - self.shift[1] - self.length(w["Z"].value) if "Z" in w else oz
+            if system == "EXT":
+                self.ext = (x, z)
+            else:
+                self.offsets[system] = (x, z)
+            used = system in (self.system, "EXT")
+            if used and level == 20:
+                gx = self.x_length(w["X"].value) if "X" in w else self.pos[0]
+                gz = self.length(w["Z"].value) if "Z" in w else self.pos[1]
+                self.pos = (gx, gz)  # known even where the machine position is not
+            elif used:
+                self._reframe(line, before, f"G10 L{level}")
+            self.note(
+                n,
+                f"G10 L{level} P{p}",
+                f"work offset {system} set to (x={x:.4f}, z={z:.4f}) mm"
+                + (" (the system in use: applied)" if used else " (not the system in use)"),
+            )
+            for k in ("X", "Z"):
+                w.pop(k, None)
+            return
+        for k in ("X", "Z", "U", "W", "R"):
+            w.pop(k, None)
+        self.note(
+            n,
+            "G10" + (f" L{level}" if level is not None else ""),
+            "tool data recorded, not applied",
+        )
+
+    def _set_coordinates(self, line, code, w) -> None:
+        """G92 / Fanuc's G50 X Z: the current position gets the coordinates given."""
+        if code == "G50" and self.table.name == "okuma":
+            raise self.err(line, "Okuma's G50 X/Z (zero shift) is not read")
+        if "U" in w or "W" in w:
+            raise self.err(line, f"{code} takes X/Z (the position's new coordinates), not U/W")
+        x, z = self.pos
         if "X" in w:
-            vx = self.length(w["X"]) / (2.0 if self.diameter else 1.0)
-            x = vx if self.absolute else x0 + vx
+            x = self.x_length(w["X"].value)
         if "Z" in w:
-            vz = self.length(w["Z"])
-            z = vz if self.absolute else z0 + vz
-        kind = {"G0": "rapid", "G1": "feed", "G2": "cw", "G3": "ccw"}[self.motion]
+            z = self.length(w["Z"].value)
+        self.shift = (self.shift[0] + self.pos[0] - x, self.shift[1] + self.pos[1] - z)
+        self.saved_shift = self.shift
+        self.pos = (x, z)
+        self.note(
+            line.number, code, f"coordinate system set: the tool is at (x={x:.4f}, z={z:.4f}) mm"
+        )
+        for k in ("X", "Z"):
+            w.pop(k, None)
+
+    def _axis_targets(self, w, start) -> tuple[float, float]:
+        """The end point of the axis words in program coordinates (NaN where unknown)."""
+        x, z = start
+        if "X" in w:
+            v = self.x_length(w["X"].value)
+            x = v if self.absolute else x + v
+        if "Z" in w:
+            v = self.length(w["Z"].value)
+            z = v if self.absolute else z + v
+        if "U" in w:
+            x = x + self.x_length(w["U"].value)
+        if "W" in w:
+            z = z + self.length(w["W"].value)
+        return (x, z)
+
+    def _reference(self, line, code, w, axes) -> None:
+        """G28/G30: a rapid to the intermediate point (the axis words), then to the
+        reference position on the axes named (all of them without axis words: LinuxCNC)."""
+        if not axes and self.table.name != "linuxcnc":
+            raise self.err(line, f"{code} needs the axes to return (U0 W0, or X/Z)")
+        mid = self._axis_targets(w, self.pos)
+        self._emit(line, "rapid", mid, None, via=code)  # LinuxCNC: also without axis words
+        xs = not axes or any(k in w for k in ("X", "U"))
+        zs = not axes or any(k in w for k in ("Z", "W"))
+        ref = self.to_program(self.homes[code])
+        end = (ref[0] if xs else mid[0], ref[1] if zs else mid[1])
+        if not any(math.isnan(v) for v in end):
+            self._emit(line, "rapid", end, None, via=code)
+        else:
+            self.pos = end
+            self.note(
+                line.number,
+                code,
+                "the reference position is the machine's, not known here (ReadOptions."
+                "machine_zero): the position is unknown until X and Z are programmed absolutely",
+            )
+
+    # -- moves -----------------------------------------------------------------------------
+
+    def _move(self, line, w, *, machine: bool = False) -> None:
+        x0, z0 = self.pos
+        kind = _KIND[self.motion]
+        if machine:
+            if kind not in ("rapid", "feed"):
+                raise self.err(line, "G53 works with G0 or G1 only")
+            if self.table.name == "linuxcnc" and not self.absolute:
+                raise self.err(line, "G53 in incremental mode (G91) is not allowed")
+            if self.fanuc:
+                kind = "rapid"  # Fanuc G53: a rapid in machine coordinates
+            wx, wz = self.work()
+            x = self.x_length(w["X"].value) - wx if "X" in w else x0
+            z = self.length(w["Z"].value) - wz if "Z" in w else z0
+            self._emit(line, kind, (x, z), None, via="G53")
+            return
+        end = self._axis_targets(w, (x0, z0))
+        if any(math.isnan(v) for v in end):
+            if kind != "rapid":
+                raise self.err(
+                    line,
+                    "a cutting move from or to a position that is not known (after a "
+                    "reference return or a machine-coordinate move: program X and Z "
+                    "absolutely with G0 first, or give the machine zero)",
+                )
         center = None
         if kind in ("cw", "ccw"):
             if self.just_off:
                 raise self.err(line, "the move just after G40 must be straight")
-            center = self.arc_center(line, w, (x0, z0), (x, z), kind)
+            if any(math.isnan(v) for v in (x0, z0)):
+                raise self.err(line, "an arc from a position that is not known")
+            center = self._arc_center(line, w, (x0, z0), end, kind)
+        corner = w.get(",C") or w.get(",R")
+        if self.corner is not None:
+            self._make_corner(line, kind, end)
+            x0, z0 = self.pos
+        if corner is not None:
+            if kind != "feed":
+                raise self.err(line, f"{corner.letter} is only read on a G1 move")
+            m = self._motion(line, kind, (x0, z0), end, None)
+            self.corner = (m, corner)
+            self.pos = end
+            return
+        if any(math.isnan(v) for v in (x0, z0)) or any(math.isnan(v) for v in end):
+            self.note(line.number, "G0", "a rapid from or to a position that is not known")
+            self.pos = end
+            return
+        self._emit(line, kind, end, center)
+
+    def _motion(self, line, kind, start, end, center, via="") -> Motion:
         m = Motion(
             kind,
-            (x0, z0),
-            (x, z),
+            start,
+            end,
             line.number,
             center,
             self.comp,
             self.comp is not None and self.first_after_on,
+            via,
         )
         if self.comp is not None:
             self.first_after_on = False
         self.just_off = False
+        return m
+
+    def _emit(self, line, kind, end, center, via="") -> None:
+        if any(math.isnan(v) for v in (*self.pos, *end)):
+            self.note(line.number, via or kind, "a rapid from or to a position that is not known")
+            self.pos = end
+            return
+        m = self._motion(line, kind, self.pos, end, center, via)
         self.moves.append(m)
         self.events.append(m)
-        self.pos = (x, z)
+        self.pos = end
 
-    def arc_center(self, line, w, p0, p1, kind):
+    def _make_corner(self, line, kind, end) -> None:
+        """The waiting ,C/,R move ends short of its corner; the corner is inserted."""
+        prev, word = self.corner
+        self.corner = None
+        if kind != "feed":
+            raise self.err(
+                line,
+                f"{word.letter}{word.text} on line {prev.line}: a corner "
+                "between a line and an arc is not read yet (G1 after it)",
+            )
+        p0, p1, p2 = prev.start, prev.end, end
+        ua, la = _unit(p0, p1)
+        ub, lb = _unit(p1, p2)
+        if la == 0.0 or lb == 0.0:
+            raise self.err(line, f"{word.letter} on line {prev.line}: a corner needs two moves")
+        cross = ua[0] * ub[1] - ua[1] * ub[0]
+        dot = ua[0] * ub[0] + ua[1] * ub[1]
+        if abs(cross) < 1e-12:
+            raise self.err(line, f"{word.letter} on line {prev.line}: the moves are in line")
+        size = self.length(word.value)
+        if word.letter == ",C":
+            t = size
+        else:
+            phi = math.atan2(abs(cross), dot)  # the turn between the two moves
+            t = size * math.tan(phi / 2)
+        if t >= la - 1e-9 or t >= lb - 1e-9:
+            raise self.err(
+                line,
+                f"{word.letter}{word.text} on line {prev.line} is larger than the moves it joins",
+            )
+        q1 = (p1[0] - t * ua[0], p1[1] - t * ua[1])
+        q2 = (p1[0] + t * ub[0], p1[1] + t * ub[1])
+        first = Motion(prev.kind, p0, q1, prev.line, None, prev.comp, prev.entry, prev.via)
+        self.moves.append(first)
+        self.events.append(first)
+        if word.letter == ",C":
+            corner = Motion("feed", q1, q2, prev.line, None, prev.comp, False, ",C")
+        else:
+            # the centre lies on the inner side of the turn (left for a left turn)
+            s = 1.0 if cross > 0 else -1.0
+            n = (-ua[1] * s, ua[0] * s)
+            c = (q1[0] + size * n[0], q1[1] + size * n[1])
+            corner = Motion(
+                "ccw" if cross < 0 else "cw", q1, q2, prev.line, c, prev.comp, False, ",R"
+            )
+        self.moves.append(corner)
+        self.events.append(corner)
+        self.pos = q2
+
+    def _arc_center(self, line, w, p0, p1, kind):
         has_ik = "I" in w or "K" in w
         if has_ik and "R" in w:
             raise self.err(line, "an arc takes R or I/K, not both")
         if not has_ik and "R" not in w:
             raise self.err(line, "an arc needs R or I/K")
         if "R" in w:
-            return _center_from_r(self, line, p0, p1, self.length(w["R"]), kind)
-        i = self.length(w.get("I", 0.0))
-        k = self.length(w.get("K", 0.0))
-        c = (i, k) if self.arc_absolute else (p0[0] + i, p0[1] + k)
+            return _center_from_r(self, line, p0, p1, self.length(w["R"].value), kind)
+        i = self.length(w["I"].value) if "I" in w else 0.0
+        k = self.length(w["K"].value) if "K" in w else 0.0
+        if self.arc_absolute:
+            c = (i, k)
+        else:
+            c = (p0[0] + i, p0[1] + k)
         r0, r1 = math.dist(c, p0), math.dist(c, p1)
         if r0 < _RADIUS_TOL_MM or r1 < _RADIUS_TOL_MM:
             raise self.err(line, "zero-radius arc")
@@ -444,8 +873,31 @@ class _Reader:
             )
         return c
 
+    def _stops(self, line, mcodes) -> None:
+        code = mcodes.get("stop")
+        if code in ("M0", "M1", "M60"):
+            self.note(line.number, code, "program stop: reading goes on")
 
-def _center_from_r(reader, line, p0, p1, r, kind):
+
+def _unit(p, q):
+    dx, dz = q[0] - p[0], q[1] - p[1]
+    length = math.hypot(dx, dz)
+    if length == 0.0:
+        return (0.0, 0.0), 0.0
+    return (dx / length, dz / length), length
+
+
+def _hint(machine: ModalMachine, letter: str) -> str:
+    if letter in ("Y", "J"):
+        return " (a lathe program lives in the XZ plane)"
+    if letter in ("U", "W") and machine.table.name == "linuxcnc":
+        return " (U/W are axes in LinuxCNC; incremental X/Z words are Fanuc's: --dialect fanuc)"
+    if letter in ("A", "B", "C"):
+        return " (rotary axes are not read)"
+    return ""
+
+
+def _center_from_r(machine, line, p0, p1, r, kind):
     """Centre of an R-format arc from ``p0`` to ``p1`` (drawing frame: z right, x up).
 
     The centre lies on the perpendicular bisector of the chord, $h =
@@ -457,60 +909,11 @@ def _center_from_r(reader, line, p0, p1, r, kind):
     dx, dz = x1 - x0, z1 - z0
     chord = math.hypot(dx, dz)
     if chord == 0.0:
-        raise reader.err(line, "an R arc cannot start and end at the same point")
+        raise machine.err(line, "an R arc cannot start and end at the same point")
     ar = abs(r)
     if chord / 2 - ar > _RADIUS_TOL_MM:
-        raise reader.err(line, f"arc radius {ar:.4f} mm is too small to reach the end point")
+        raise machine.err(line, f"arc radius {ar:.4f} mm is too small to reach the end point")
     h = math.sqrt(max(ar * ar - chord * chord / 4, 0.0))
     left_x, left_z = dz / chord, -dx / chord  # unit normal, left of travel (drawing frame)
     side = (1.0 if kind == "ccw" else -1.0) * (1.0 if r > 0 else -1.0)
     return ((x0 + x1) / 2 + side * h * left_x, (z0 + z1) / 2 + side * h * left_z)
-
-
-def parse_gcode(
-    text: str,
-    *,
-    name: str | None = None,
-    units: str = "mm",
-    diameter_mode: bool = False,
-    start: tuple[float, float] = (0.0, 0.0),
-) -> GcodeProgram:
-    """Read a lathe part program from its text.
-
-    **Arguments:**
-
-    - `text`: the program text.
-    - `name`: the name used in error messages.
-    - `units`: ``"mm"`` or ``"in"`` before the first G20/G21.
-    - `diameter_mode`: X words are diameters before the first G7/G8
-      (LinuxCNC's default is radius, Fanuc's diameter).
-    - `start`: the tool position ``(x, z)`` (mm, radius) before the first move.
-
-    **Returns:** a :class:`GcodeProgram` (``.moves`` in mm, radius X;
-    ``.text`` is ``text`` unchanged).
-    """
-    if units not in ("mm", "in"):
-        raise InputError(f"units must be 'mm' or 'in', got {units!r}", file=name)
-    return _Reader(lex_gcode(text, name=name), units, diameter_mode, start).run()
-
-
-def read_gcode(
-    path,
-    *,
-    units: str = "mm",
-    diameter_mode: bool = False,
-    start: tuple[float, float] = (0.0, 0.0),
-) -> GcodeProgram:
-    """Read a lathe part program file (see :func:`parse_gcode` for the arguments).
-
-    The bytes are kept exactly (line endings, undecodable bytes), so
-    ``program.source.to_bytes()`` equals the file's bytes.
-    """
-    path = Path(path)
-    return parse_gcode(
-        read_text_lossless(path),
-        name=str(path),
-        units=units,
-        diameter_mode=diameter_mode,
-        start=start,
-    )

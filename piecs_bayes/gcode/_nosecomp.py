@@ -783,7 +783,7 @@ def compensated_path(
             )
         tool_table = UniformNose(float(nose_radius))
     if start is None:
-        start = tuple(program.options.get("start", (0.0, 0.0)))
+        start = tuple(program.options.start) if program.options is not None else (0.0, 0.0)
     comp = ArcCornerComp(program, tool_table, start)
     if corner == "arc":
         raw = comp.run()

@@ -16,10 +16,12 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 
+from ..errors import InputError
 from ._lexer import edit_line
 
 _COMP_CODES = {"G40", "G41", "G42", "G41.1", "G42.1"}
 _MOTION_CODES = {"G0", "G1", "G2", "G3"}
+_AXIS_WORDS = {"X", "Z", "I", "K", "R", "U", "W", ",C", ",R"}
 _GCODE = {"rapid": "G0", "feed": "G1", "cw": "G2", "ccw": "G3"}
 
 
@@ -103,6 +105,13 @@ def write_path_program(program, path) -> tuple[str, tuple[int, ...]]:
         if same and not comp_words:
             out.append(line.text + line.eol)
             continue
+        why = program.edit_refusal(line.number) if hasattr(program, "edit_refusal") else None
+        if why is not None:
+            raise InputError(
+                f"this line cannot be rewritten in place: {why}",
+                file=program.name or "<program>",
+                line=line.number,
+            )
         changed.append(line.number)
         remove = set(comp_words)
         inserted: list[list[str]] = []
@@ -110,7 +119,7 @@ def write_path_program(program, path) -> tuple[str, tuple[int, ...]]:
             motion = {
                 k
                 for k, w in enumerate(line.words)
-                if (w.letter == "G" and w.code in _MOTION_CODES) or w.letter in "XZIKR"
+                if (w.letter == "G" and w.code in _MOTION_CODES) or w.letter in _AXIS_WORDS
             }
             if not new:  # keep the motion mode, drop the axes
                 motion = {k for k in motion if line.words[k].letter != "G"}

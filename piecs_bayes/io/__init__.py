@@ -36,6 +36,7 @@ from ._probe_cal import coefficient_names as coefficient_names
 from ._probe_cal import lobe_basis as lobe_basis
 from ._probe_cal import read_probe_calibration as read_probe_calibration
 from ._settings import APPLY_ROUTES as APPLY_ROUTES
+from ._settings import PROGRAM_DIALECTS as PROGRAM_DIALECTS
 from ._settings import CompensationSettings as CompensationSettings
 from ._settings import FitSettings as FitSettings
 from ._settings import ProbeSpec as ProbeSpec

@@ -16,7 +16,7 @@ from typing import Any
 
 from ..geometry import Profile
 from ._reader import Reader
-from ._settings import ProgramSettings
+from ._settings import PROGRAM_DIALECTS, ProgramSettings
 
 # Keys of the job sections read by piecs_bayes.decisions (see docs/formats.md):
 # (kind, bounds) with kind "length" (converted to mm), "number", "int", "bool",
@@ -247,4 +247,9 @@ def read_program_settings(
         mapping=MappingProxyType(clean),
         tolerance=r.number(tree, "tolerance", "program.", 0.01 / scale, positive=True) * scale,
         stock=r.number(tree, "stock", "program.", 0.5 / scale, nonneg=True) * scale,
+        dialect=(
+            r.choice(tree, "dialect", "program.", PROGRAM_DIALECTS, None)
+            if "dialect" in tree
+            else None
+        ),
     )

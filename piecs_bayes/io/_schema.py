@@ -36,7 +36,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
         "free_transform", "likelihood", "nu", "bayes_steps", "bayes_walkers", "bayes_ensembles",
     ),
     "compensation": ("gain", "max_correction", "apply"),
-    "program": ("nose_radius", "tool_table", "mapping", "tolerance", "stock"),
+    "program": ("nose_radius", "tool_table", "mapping", "tolerance", "stock", "dialect"),
     "plausibility": ("max_distance", "max_outside", "duplicates"),
 }  # fmt: skip
 

@@ -78,6 +78,10 @@ class CompensationSettings:
     apply: str | None = None
 
 
+#: the part-program dialects a study may name (`[program] dialect`; gcode reads them)
+PROGRAM_DIALECTS = ("linuxcnc", "fanuc", "haas", "okuma")
+
+
 @dataclass(frozen=True)
 class ProgramSettings:
     """How the part program is adjusted: the tool-nose radius (mm) or a LinuxCNC
@@ -85,13 +89,15 @@ class ProgramSettings:
     mapping of finish-cut blocks (overrides the mapping by geometry) and the
     distance (mm) within which a block counts as lying on a feature; ``stock``: the
     most material the semifinished part may carry beyond the nominal profile (mm),
-    which the gauging program's moves keep clear of."""
+    which the gauging program's moves keep clear of; ``dialect``: the part program's
+    dialect (one of ``PROGRAM_DIALECTS``; None: detected from the program)."""
 
     nose_radius: float | None = None
     tool_table: Path | None = None
     mapping: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     tolerance: float = 0.01
     stock: float = 0.5
+    dialect: str | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -372,7 +372,7 @@ def adjust_study_program(
 
     **Returns:** a ``ProgramAdjustment`` (``.text``, ``.diff``, ``.changes``).
     """
-    from ..gcode import adjust_program, read_tool_table
+    from ..gcode import adjust_program, read_gcode, read_tool_table
 
     if study.program is None:
         raise InputError(
@@ -383,7 +383,7 @@ def adjust_study_program(
     if table is not None and not hasattr(table, "get"):
         table = read_tool_table(table)
     return adjust_program(
-        study.program,
+        read_gcode(study.program, ps.dialect),
         study.profile,
         path.profile,
         max_correction_mm=study.compensation.max_correction,

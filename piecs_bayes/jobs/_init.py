@@ -68,6 +68,12 @@ def _nose_radius(contour, tool_table, tool_units, scale) -> Setting:
     return Setting(key, placeholder, "the finish tool's nose radius (gouge check)", True)
 
 
+def _dialect_comment(dialect) -> str:
+    if dialect.reason == "given":
+        return "the part program's dialect, as given"
+    return f"the part program's dialect, detected: {dialect.reason}"
+
+
 def _check_kind(contour: FinishContour, kind: str | None) -> None:
     if kind is None or kind == contour.kind:
         return
@@ -137,6 +143,7 @@ def study_from_program(
     tool_table=None,
     tool_units: str = "mm",
     ball_radius_mm: float | None = None,
+    dialect: str | None = None,
 ) -> InitResult:
     """The study of a finish program, not written (see the module doc).
 
@@ -152,6 +159,8 @@ def study_from_program(
     - `run`: which compensation run (1-based) when the program has several.
     - `tool_table`, `tool_units`: a LinuxCNC tool table for `[program] nose_radius`.
     - `ball_radius_mm`: the probe's ball radius (else a placeholder).
+    - `dialect`: the program's dialect (``"linuxcnc"``, ``"fanuc"``, ``"haas"``,
+      ``"okuma"``); None: detected. The study records it (`[program] dialect`).
 
     **Returns:** an [`InitResult`][] without `path`.
 
@@ -165,7 +174,8 @@ def study_from_program(
     except ValueError as exc:
         raise InputError(str(exc), value=tolerance_class) from None
     program = Path(program)
-    contour = finish_contour(read_gcode(program), run=run)
+    read = read_gcode(program, dialect)
+    contour = finish_contour(read, run=run)
     _check_kind(contour, kind)
     units = contour.units or "mm"
     scale = MM_PER[units]
@@ -230,7 +240,10 @@ def study_from_program(
                 commented=True,
             ),
         ),
-        program=(_nose_radius(contour, tool_table, tool_units, scale),),
+        program=(
+            _nose_radius(contour, tool_table, tool_units, scale),
+            Setting("dialect", read.dialect.name, _dialect_comment(read.dialect)),
+        ),
     )
     return InitResult(content, study_toml(content), contour)
 

@@ -337,7 +337,7 @@ def program_tool(study, notes: list | None = None) -> tuple[int, int, str]:
     prog = str(study.program)
     ps = study.program_settings
     found = finish_cut_tools(
-        read_gcode(study.program),
+        read_gcode(study.program, ps.dialect),
         study.profile,
         tol_mm=ps.tolerance,
         mapping=dict(ps.mapping) or None,

@@ -71,6 +71,22 @@ def test_round_trip_property(lines, last_eol):
     assert lex_gcode(text).text == text
 
 
+@settings(max_examples=300, deadline=None)
+@given(_line)
+def test_the_fast_paths_lex_as_the_full_lexer(text):
+    # most lines are lexed by one regular expression; the full lexer is the reference
+    from piecs_bayes.gcode._lexer import _LexError, _LineLexer, lex_line
+
+    full = _LineLexer(text)
+    try:
+        full.run()
+    except _LexError:
+        return
+    line = lex_line(text, "\n", 1, None)
+    assert line.words == tuple(full.words) and line.comments == tuple(full.comments)
+    assert line.percent == full.percent
+
+
 def test_round_trip_keeps_odd_bytes_endings_and_blanks():
     raw = b"%\r\nG18 G21\t(tab) \r\n\r\n  g1 x1.50 z-2 f100 ; caf\xe9\rG0 X2\n%"
     text = raw.decode("utf-8", errors="surrogateescape")
@@ -78,6 +94,14 @@ def test_round_trip_keeps_odd_bytes_endings_and_blanks():
     assert src.to_bytes() == raw
     assert [ln.eol for ln in src.lines] == ["\r\n", "\r\n", "\r\n", "\r", "\n", ""]
     assert src.lines[0].percent and src.lines[-1].percent
+
+
+def test_parameters_expressions_and_block_delete_are_lexed():
+    # (these were refused before the reader ran control flow and parameters)
+    line = lex_gcode("/G1 X#1 Z[1+2] #3=[#1*2] (c)\n").lines[0]
+    assert line.block_delete and [str(w) for w in line.words] == ["G1", "X#1", "Z[1+2]"]
+    assert line.words[1].expr is not None and math.isnan(line.words[1].value)
+    assert [a.text for a in line.assignments] == ["#3=[#1*2]"] and line.computed
 
 
 def test_words_keep_their_text():
@@ -91,12 +115,13 @@ def test_words_keep_their_text():
 @pytest.mark.parametrize(
     "text, message",
     [
-        ("G1 X#1 Z0\n", "parameters"),
-        ("G1 X[1+2]\n", "expressions"),
-        ("/G1 X1\n", "block delete"),
         ("G1 X1 (open\n", "not closed"),
         ("G1 X Z1\n", "has no number"),
-        ("G1 X1 % Z2\n", "alone on its line"),
+        ("G1 X1 % Z2\n", "must end its line"),
+        ("G1 X[1+2\n", "not closed"),
+        ("G1 X1 /Z2\n", "must begin the line"),
+        ("#1 2\n", "not assigned"),
+        ("G1 X10\x00\n", "NUL byte"),
     ],
 )
 def test_lexer_errors_name_line_and_text(text, message):

@@ -231,8 +231,9 @@ REFUSALS = [
     ("non_planar", _HEAD + _LEAD + "G1 Y2 Z-10\n" + _TAIL, 5, "word Y2 is not understood (a lathe program lives in the XZ plane)"),
     ("no_feature", _HEAD + _LEAD + "G1 X40 Z-20\nG40 G0 X50\nM30\n", 4, "has no feature between its lead-in (line 4) and its exit (line 5)"),
     ("only_zero_length", _HEAD + _LEAD + "G1 X20 Z1\n" + _TAIL, 4, "only zero-length moves"),
-    ("two_runs", _HEAD + _LEAD + "G1 Z-10\n" + _TAIL + _LEAD + "G1 Z-5\n" + _TAIL, None,
-     "2 compensated runs (run 1: lines 4-6 (G42); run 2: lines 9-11 (G42)): choose the finish contour with --run N"),
+    # (no M30 between the runs: the control stops there, and so does the reader)
+    ("two_runs", _HEAD + _LEAD + "G1 Z-10\n" + _TAIL[:-4] + _LEAD + "G1 Z-5\n" + _TAIL, None,
+     "2 compensated runs (run 1: lines 4-6 (G42); run 2: lines 8-10 (G42)): choose the finish contour with --run N"),
     ("lone_face", _HEAD + "G42 G1 X50 Z0 F0.1\nG1 X10 Z0\nG1 X8 Z-1\nG40 G0 X50 Z5\nM30\n", 5, "a lone face"),
     ("full_circle", _HEAD + _LEAD + "G1 Z-5\nG2 X20 Z-5 I2 K0\n" + _TAIL, 6, "a full-circle arc"),
 ]  # fmt: skip
