@@ -362,7 +362,7 @@ class ModalMachine:
             axes = []
         arc_words = [k for k in ("I", "K", "R") if k in w]
         if axes:
-            if self.motion is None:
+            if self.motion is None and not (nonmodal == "G53" and self.fanuc):
                 raise self.err(line, "axis words with no motion mode (G0/G1/G2/G3) in force")
             self._move(line, w, machine=nonmodal == "G53")
         elif nonmodal == "G53":
@@ -726,7 +726,8 @@ class ModalMachine:
 
     def _move(self, line, w, *, machine: bool = False) -> None:
         x0, z0 = self.pos
-        kind = _KIND[self.motion]
+        # Fanuc G53 is a one-shot rapid whatever the motion mode (none in force included)
+        kind = "rapid" if machine and self.fanuc else _KIND[self.motion]
         if machine:
             if kind not in ("rapid", "feed"):
                 raise self.err(line, "G53 works with G0 or G1 only")

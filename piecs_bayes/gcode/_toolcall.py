@@ -3,7 +3,8 @@
 :func:`tool_call` reads a T word into a [`ToolCall`][] (tool and wear offset number):
 in a program without M6 (*turret style*: Fanuc, Haas, Okuma and other Fanuc-style
 lathes) ``Tttoo`` is tool ``tt`` with wear offset ``oo`` (``T0202``, ``T202``: tool 2,
-offset 2; ``T2``: tool 2, offset 2; more than four digits refused); in a program with
+offset 2; ``T2``: tool 2, offset 2; six digits are Okuma's ``Tnnttoo``, nose-radius
+number ``nn``, tool ``tt``, offset ``oo``; five or more than six refused); in a program with
 M6 (*M6 style*: LinuxCNC) the number is the tool as written and the offset number is
 the tool number. :func:`finish_cut_tools` gives the tools in force on the finish-cut
 blocks ([`FinishCutTools`][]), with `why` when the blocks could not be mapped and the
@@ -60,10 +61,13 @@ def tool_call(word, *, file: str | None = None) -> ToolCall:
     v = int(word.value)
     if word.by == "M6":
         return ToolCall(v, v, word.text, word.line, "M6")
+    if len(digits) == 6:  # Okuma OSP (manual 5238-E, 6 1-4): nose-radius number, tool, offset
+        return ToolCall((v // 100) % 100, v % 100, word.text, word.line, "turret")
     if len(digits) > 4:
         raise InputError(
-            f"{word.text}: a T word of more than four digits is not understood (Tttoo: "
-            "tool tt, wear offset oo); name the tool in the study's [offsets] tool",
+            f"{word.text}: a T word of five or more than six digits is not understood "
+            "(Tttoo: tool tt, wear offset oo; Okuma Tnnttoo: nose-radius number nn, tool tt, "
+            "offset oo); name the tool in the study's [offsets] tool",
             file=file,
             line=word.line,
             value=word.text,

@@ -86,6 +86,7 @@ def _word(text, by="T", line=4):
         ("T0200", "T", 2, 0),  # offsets cancelled
         ("T2", "M6", 2, 2),  # LinuxCNC T2 M6: tool 2, its tool-table entry
         ("T0202", "M6", 202, 202),  # LinuxCNC reads the number as written
+        ("T030201", "T", 2, 1),  # Okuma OSP: nose-radius number 03, tool 02, offset 01
     ],
 )
 def test_what_a_t_word_calls(word, by, tool, offset):
@@ -94,9 +95,13 @@ def test_what_a_t_word_calls(word, by, tool, offset):
     assert call.style == ("turret" if by == "T" else "M6")
 
 
-def test_a_t_word_of_more_than_four_digits_is_refused():
-    with pytest.raises(InputError, match=r"p.ngc:4: T10202: a T word of more than four digits"):
+def test_a_t_word_of_five_or_more_than_six_digits_is_refused():
+    with pytest.raises(
+        InputError, match=r"p.ngc:4: T10202: a T word of five or more than six digits"
+    ):
         tool_call(_word("T10202"), file="p.ngc")
+    with pytest.raises(InputError, match=r"T1020304: a T word of five or more than six"):
+        tool_call(_word("T1020304"), file="p.ngc")
 
 
 def test_the_reader_tracks_the_cutting_tool_turret_and_m6_style():
