@@ -15,7 +15,7 @@ The tables and the sources they were checked against: docs/models/part_programs.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ._expr import FANUC_RULES, LINUXCNC_RULES, Rules
 
@@ -194,18 +194,6 @@ _TABLES = {
         turret=True,
         local_params=33,
     ),
-    "haas": DialectTable(
-        "haas",
-        _HAAS_GROUPS,
-        "last",
-        diameter=True,
-        feed_per_rev=True,
-        rules=FANUC_RULES,
-        refused=_FANUC_REFUSED,
-        incremental_uw=True,
-        turret=True,
-        local_params=33,
-    ),
     "okuma": DialectTable(
         "okuma",
         _OKUMA_GROUPS,
@@ -232,6 +220,9 @@ def dialect_table(name: str) -> DialectTable:
 # -- detection --------------------------------------------------------------------------
 
 _STRONG, _MEDIUM, _WEAK = 10, 5, 1
+# Haas is Fanuc with its own G-code table (several group codes in a safe-start block)
+_TABLES["haas"] = replace(_TABLES["fanuc"], name="haas", groups=_HAAS_GROUPS)
+
 _LINUXCNC_ONLY = {
     "G7": "G7/G8 diameter/radius mode",
     "G8": "G7/G8 diameter/radius mode",
