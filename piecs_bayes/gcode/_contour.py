@@ -24,6 +24,9 @@ from ..errors import InputError
 from ..geometry import ProfileError, profile_side
 from ._program import CompSetting, GcodeProgram, Motion
 
+#: the codes of the canned cycles, as ``Motion.via`` names the moves they make
+CYCLE_CODES = frozenset(("G70", "G71", "G71.1", "G71.2", "G72", "G72.1", "G72.2", "G73"))
+
 
 @dataclass(frozen=True)
 class ContourSegment:
@@ -90,16 +93,26 @@ class FinishContour:
 
 def compensation_runs(program: GcodeProgram) -> tuple[tuple[Motion, ...], ...]:
     """The moves of each compensation run (G41/G42 ... G40), in program order; a
-    G41/G42 followed by no move makes no run."""
-    runs: list[list[Motion]] = []
-    for m in program.moves:
-        if m.comp is None:
+    G41/G42 followed by no move makes no run. A canned cycle's moves are not one: the
+    contour of a finish cycle (``GcodeProgram.cycles``: a LinuxCNC G70, a roughing
+    cycle no G70 cuts) is, with its blocks' own lines; a Fanuc G70 runs its blocks."""
+    found: list[tuple[int, list[Motion]]] = []
+    last = -2
+    for i, m in enumerate(program.moves):
+        if m.comp is None or m.via in CYCLE_CODES:
             continue
-        if runs and runs[-1][-1].comp is m.comp and not m.entry:
-            runs[-1].append(m)
+        run = found[-1][1] if found else None
+        if run is not None and last == i - 1 and run[-1].comp is m.comp and not m.entry:
+            run.append(m)
         else:
-            runs.append([m])
-    return tuple(tuple(r) for r in runs)
+            found.append((i, [m]))
+        last = i
+    for c in program.cycles:
+        run = [m for m in c.contour if m.comp is not None]
+        if c.finish and run:
+            found.append((c.move_index, run))
+    found.sort(key=lambda item: item[0])
+    return tuple(tuple(r) for _, r in found)
 
 
 def _err(program, msg, line=None, value=None) -> InputError:
@@ -109,7 +122,8 @@ def _err(program, msg, line=None, value=None) -> InputError:
 def _off_line(program: GcodeProgram, comp: CompSetting) -> int | None:
     """The line of the G40 that ends the run switched on by `comp`."""
     on = False
-    for ev in program.events:
+    cycle_events = [e for c in program.cycles for e in c.events]
+    for ev in [*program.events, *cycle_events]:
         if hasattr(ev, "kind"):
             continue
         if ev.setting is comp:

@@ -58,6 +58,8 @@ class DialectTable:
     """T words index a turret (``T0101`` = tool 1, offset 1); else T selects and M6 changes."""
     local_params: int = 30
     """Numbered parameters local to a subroutine or macro call: #1 .. this."""
+    cycles: frozenset[str] = frozenset()
+    """The canned-cycle codes the reader runs (G70-G73: ``_cycle_run``)."""
 
 
 _LATHE_PLANE = "only the XZ plane (G18) is read for a lathe"
@@ -65,7 +67,9 @@ _THREAD = (
     "threading is not understood: a thread is a helix synchronised with the spindle, "
     "not a contour of lines and arcs"
 )
-_CYCLE = "canned cycles (G70-G76) are not expanded yet"
+_GROOVE = "is a grooving or peck drilling cycle, not a contour: not read"
+_LINUXCNC_CYCLES = frozenset(("G70", "G71", "G71.1", "G71.2", "G72", "G72.1", "G72.2"))
+_FANUC_CYCLES = frozenset(("G70", "G71", "G72", "G73"))
 _DRILL = "drilling cycles (G81-G89) are not read: they drill, they do not cut a contour"
 
 _LINUXCNC_GROUPS = {
@@ -102,7 +106,6 @@ _LINUXCNC_REFUSED = {
     "G38.4": "probing moves (G38.x) are not read in a part program",
     "G38.5": "probing moves (G38.x) are not read in a part program",
     **dict.fromkeys(("G32", "G33", "G33.1", "G76"), _THREAD),
-    **dict.fromkeys(("G70", "G71", "G71.1", "G71.2", "G72", "G72.1", "G72.2"), _CYCLE),
     **dict.fromkeys(("G73", "G74", "G81", "G82", "G83", "G84", "G85", "G86"), _DRILL),
     **dict.fromkeys(("G87", "G88", "G89"), _DRILL),
 }
@@ -132,7 +135,8 @@ _FANUC_REFUSED = {
     "G17": _LATHE_PLANE,
     "G19": _LATHE_PLANE,
     **dict.fromkeys(("G32", "G34", "G76", "G92"), _THREAD),
-    **dict.fromkeys(("G70", "G71", "G72", "G73", "G74", "G75"), _CYCLE),
+    "G74": f"G74 (face grooving / peck drilling along Z) {_GROOVE}",
+    "G75": f"G75 (grooving along X) {_GROOVE}",
     "G90": "G90 on a Fanuc lathe (G-code system A) is the turning box cycle: not expanded "
     "yet (absolute and incremental are X/Z and U/W)",
     "G94": "G94 on a Fanuc lathe (G-code system A) is the facing box cycle: not expanded yet "
@@ -181,6 +185,7 @@ _TABLES = {
         rules=LINUXCNC_RULES,
         refused=_LINUXCNC_REFUSED,
         m_codes=_LINUXCNC_M,
+        cycles=_LINUXCNC_CYCLES,
     ),
     "fanuc": DialectTable(
         "fanuc",
@@ -193,6 +198,7 @@ _TABLES = {
         incremental_uw=True,
         turret=True,
         local_params=33,
+        cycles=_FANUC_CYCLES,
     ),
     "okuma": DialectTable(
         "okuma",

@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ._cycle_run import finish_cycles, run_cycle
 from ._dialect import DialectTable
 from ._expr import ExpressionError, Param, compile_value
 from ._lexer import GcodeText, SourceLine
@@ -220,6 +221,13 @@ class Interpreter:
         self.loop_line: int | None = None
         self.noted_delete: set[int] = set()
         self.current: SourceLine | None = None
+        self.steps = 0
+        self.first: int | None = None
+        self.tape = False
+        self.cycles: list = []  # CycleContour records, in the order the cycles ran
+        self.finished: set[int] = set()  # line indices a G70 cut
+        self.cycle_setup: dict[str, dict[str, float]] = {}  # Fanuc two-block form
+        self.in_cycle: int | None = None  # the line of the cycle whose contour runs
         self.structure = scan(src, self._err_at, self.linuxcnc)
 
     # -- errors and values ------------------------------------------------------------------
@@ -254,42 +262,12 @@ class Interpreter:
     def run(self) -> None:
         lines = self.lines
         n = len(lines)
-        first = next((i for i, ln in enumerate(lines) if not ln.is_blank), None)
-        tape = first is not None and lines[first].percent and not lines[first].words
-        limit = self.options.step_limit
-        steps = 0
-        pc = 0
-        ended = False
+        self.first = next((i for i, ln in enumerate(lines) if not ln.is_blank), None)
+        self.tape = (
+            self.first is not None and lines[self.first].percent and not lines[self.first].words
+        )
         self.current = None
-        while pc < n:
-            line = lines[pc]
-            self.current = line
-            if line.error is not None:
-                self.lex_error(line)
-            if line.block_delete and self.options.block_delete:
-                pc += 1
-                continue
-            steps += 1
-            if steps > limit:
-                where = f" (inside the loop of line {self.loop_line})" if self.loop_line else ""
-                raise self.err(
-                    line,
-                    f"the program ran {limit:,} blocks without ending{where}: an endless "
-                    "loop? (raise step_limit if it is not)",
-                )
-            self.runs[pc] += 1
-            if line.percent and not line.words and pc != first and tape:
-                ended = True
-                break  # the tape's end
-            nxt = self.step(pc, line)
-            if line.number not in self.states:
-                self.states[line.number] = self.machine.state()
-            if nxt is None or (line.percent and pc != first):
-                ended = True
-                break
-            if nxt <= pc and nxt != pc + 1:
-                self.loop_line = lines[nxt].number
-            pc = nxt
+        pc, ended = self._loop(0, 0)
         if self.frames and not ended:
             frame = self.frames[-1]
             raise self.err(
@@ -297,7 +275,77 @@ class Interpreter:
                 f"the program ends inside {frame.label} (called from line "
                 f"{lines[frame.back - 1].number}) without returning",
             )
+        finish_cycles(self)
         self.machine.finish()
+
+    def _loop(self, pc: int, depth: int) -> tuple[int, bool]:
+        """Run from line ``pc`` to the program's end or, with ``depth``, until the call
+        at that depth returns; ``(where it stopped, whether the program ended)``."""
+        lines = self.lines
+        n = len(lines)
+        limit = self.options.step_limit
+        while pc < n:
+            if depth and len(self.frames) < depth:
+                return pc, False
+            line = lines[pc]
+            self.current = line
+            if line.error is not None:
+                self.lex_error(line)
+            if line.block_delete and self.options.block_delete:
+                pc += 1
+                continue
+            self.steps += 1
+            if self.steps > limit:
+                where = f" (inside the loop of line {self.loop_line})" if self.loop_line else ""
+                raise self.err(
+                    line,
+                    f"the program ran {limit:,} blocks without ending{where}: an endless "
+                    "loop? (raise step_limit if it is not)",
+                )
+            self.runs[pc] += 1
+            if line.percent and not line.words and pc != self.first and self.tape:
+                return pc, True  # the tape's end
+            nxt = self.step(pc, line)
+            if line.number not in self.states:
+                self.states[line.number] = self.machine.state()
+            if nxt is None or (line.percent and pc != self.first):
+                return pc, True
+            if nxt <= pc and nxt != pc + 1:
+                self.loop_line = lines[nxt].number
+            pc = nxt
+        return pc, False
+
+    def run_call(self, start: int, pc: int, label: str) -> None:
+        """Run the subroutine whose ``sub`` line is ``start`` (a G7x contour), to its
+        return; the caller is line ``pc``."""
+        line = self.lines[pc]
+        frame = _Frame("sub", pc + 1, label, start)
+        self.call(frame, line, start + 1)
+        self.params.push({})
+        pc, ended = self._loop(start + 1, len(self.frames))
+        if ended:
+            raise self.err(self.lines[min(pc, len(self.lines) - 1)],
+                           f"the program ends inside {label}, the contour of line "
+                           f"{line.number}")  # fmt: skip
+
+    def run_lines(self, first: int, last: int, *, count: bool, what: str) -> None:
+        """Run lines ``first``..``last`` (indices) in order, as a cycle's P..Q blocks;
+        ``count``: they count as run. A block that leads elsewhere is refused."""
+        for i in range(first, last + 1):
+            line = self.lines[i]
+            self.current = line
+            if line.error is not None:
+                self.lex_error(line)
+            if line.block_delete and self.options.block_delete:
+                continue
+            if count:
+                self.runs[i] += 1
+            nxt = self.step(i, line)
+            if line.number not in self.states:
+                self.states[line.number] = self.machine.state()
+            if nxt != i + 1 and not (i == last and nxt is not None):
+                raise self.err(line, f"{what}: a block of the contour that jumps, calls or "
+                               "ends the program is not read")  # fmt: skip
 
     def lex_error(self, line: SourceLine) -> None:
         for w in line.words:
@@ -330,6 +378,12 @@ class Interpreter:
         if not line.words and not line.assignments:
             return pc + 1
         block = self.block(line)
+        if self.table.cycles and any(
+            w.letter == "G" and w.code in self.table.cycles for w in block.words
+        ):
+            if line.assignments:
+                raise self.err(line, "a canned cycle block with parameter assignments")
+            return run_cycle(self, pc, line, block)
         values = [
             (a, self.value(a.value, line, f"{a.text}")) for a in line.assignments
         ]  # evaluated before the line runs (LinuxCNC: set after it is read)
@@ -402,7 +456,7 @@ class Interpreter:
             return self.m99(pc, line, words)
         return pc + 1
 
-    def _find_label(self, line: SourceLine, n: int, start: int, what: str) -> int:
+    def find_label(self, line: SourceLine, n: int, start: int, what: str) -> int:
         found = self.structure.labels.get(n, [])
         if not found:
             raise self.err(line, f"{what}: there is no block N{n}")
@@ -419,7 +473,7 @@ class Interpreter:
         if code == "M97":
             if self.table.name != "haas":
                 raise self.err(line, "M97 (a local subprogram call) is Haas's")
-            target = self._find_label(line, p, pc, f"M97 P{p}")
+            target = self.find_label(line, p, pc, f"M97 P{p}")
             start, label = target, f"N{p}"
         else:
             if "L" not in words and p >= 10000:
@@ -448,7 +502,7 @@ class Interpreter:
             return frame.start + (frame.kind != "m97")
         self.ret(line)
         if "P" in words:
-            return self._find_label(
+            return self.find_label(
                 line, int(words["P"].value), frame.back, f"M99 P{_fmt(words['P'].value)}"
             )
         return frame.back
@@ -609,4 +663,4 @@ class Interpreter:
         n = self.value(target, line, "GOTO")
         if n != int(n) or n < 0:
             raise self.err(line, f"GOTO {n:g}: not a sequence number")
-        return self._find_label(line, int(n), pc, f"GOTO {int(n)}")
+        return self.find_label(line, int(n), pc, f"GOTO {int(n)}")

@@ -17,6 +17,7 @@ The words of each dialect: docs/models/part_programs.md, "The modal machine".
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -154,6 +155,8 @@ class ModalMachine:
         self.turret = turret
         self.saved: _Modes | None = None
         self.corner: tuple[Motion, BlockWord] | None = None
+        self.contour_mode = False  # reading a LinuxCNC G7x contour: A/C words are corners
+        self.corners: dict[int, tuple[float, float]] = {}  # move index -> (fillet, chamfer)
         self.moves: list[Motion] = []
         self.events: list[Motion | CompEvent] = []
         self.notes: list[Note] = []
@@ -223,6 +226,32 @@ class ModalMachine:
                 file=self.name,
                 line=m.line,
             )
+
+    # -- canned cycles ----------------------------------------------------------------------
+
+    def snapshot(self):
+        """The whole state, to run a cycle's contour blocks and then undo them."""
+        keep = ("moves", "events", "notes")
+        state = {k: copy.copy(v) for k, v in vars(self).items() if k not in keep}
+        return state, len(self.moves), len(self.events), len(self.notes)
+
+    def restore(self, snap) -> tuple[list[Motion], list[CompEvent], dict]:
+        """Back to ``snap``; returns the moves, compensation events and corners (index
+        into those moves -> (fillet, chamfer)) made since."""
+        state, n_moves, n_events, n_notes = snap
+        moves = self.moves[n_moves:]
+        events = [e for e in self.events[n_events:] if isinstance(e, CompEvent)]
+        corners = {k - n_moves: v for k, v in self.corners.items() if k >= n_moves}
+        del self.moves[n_moves:], self.events[n_events:], self.notes[n_notes:]
+        vars(self).update(state)
+        return moves, events, corners
+
+    def emit_cycle_move(self, line: SourceLine, move, via: str) -> None:
+        """A move a canned cycle makes (a ``CycleMove``), with the compensation in force."""
+        m = self._motion(line, move.kind, move.start, move.end, move.center, via)
+        self.moves.append(m)
+        self.events.append(m)
+        self.pos = move.end
 
     # -- predefined parameters --------------------------------------------------------------
 
@@ -348,6 +377,24 @@ class ModalMachine:
     # -- a block -----------------------------------------------------------------------------
 
     def execute(self, block: Block) -> None:
+        line = block.line
+        corner = None
+        if self.contour_mode:  # LinuxCNC G7x contour: A (fillet) and C (chamfer) corners
+            found = {w.letter: w.value for w in block.words if w.letter in ("A", "C")}
+            if found:
+                if len(found) == 2:
+                    raise self.err(line, "a G7x corner takes A (fillet) or C (chamfer), not both")
+                corner = (found.get("A", 0.0), found.get("C", 0.0))
+                words = tuple(w for w in block.words if w.letter not in ("A", "C"))
+                block = Block(line, words)
+        n_moves = len(self.moves)
+        self._execute(block)
+        if corner is not None:
+            if len(self.moves) == n_moves:
+                raise self.err(line, "a G7x corner (A/C) needs a move in its block")
+            self.corners[len(self.moves) - 1] = (self.length(corner[0]), self.length(corner[1]))
+
+    def _execute(self, block: Block) -> None:
         line = block.line
         gcodes, mcodes, w = self._sort(block)
         if self.corner is not None and "comp" in gcodes:

@@ -148,6 +148,30 @@ class Note:
 
 
 @dataclass(frozen=True)
+class CycleContour:
+    """The contour of a canned cycle (G70-G73) as the reader ran it.
+
+    ``code`` and ``line`` are the cycle block's; ``contour`` the contour's blocks as
+    :class:`Motion`s in program order, read from the cycle's start point with the
+    compensation the control applies to them (Fanuc: the G41/G42 of its ``P``..``Q``
+    blocks; LinuxCNC: the G41/G42 in force at the cycle), each with its own source line
+    (LinuxCNC's ``A``/``C`` corners are arcs and lines of the block that carries them);
+    ``events`` the compensation switched within it; ``finish`` says that this is a
+    finish pass (G70) or a roughing cycle whose contour no G70 cuts, so that it is the
+    part's profile; ``move_index`` is where the cycle's moves begin in
+    ``GcodeProgram.moves``; ``blocks`` its contour's lines (Fanuc ``P``..``Q``, LinuxCNC
+    the O-sub's lines)."""
+
+    code: str
+    line: int
+    contour: tuple[Motion, ...]
+    events: tuple[CompEvent, ...] = ()
+    finish: bool = False
+    move_index: int = 0
+    blocks: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
 class GcodeProgram:
     """A read program: its lossless text, its moves, events and per-line modal states.
 
@@ -168,6 +192,8 @@ class GcodeProgram:
     notes: tuple[Note, ...] = ()
     runs: tuple[int, ...] = ()
     computed: frozenset[int] = frozenset()
+    cycles: tuple[CycleContour, ...] = ()
+    """The canned cycles' contours (G70-G73), in the order they ran."""
 
     @property
     def name(self) -> str | None:

@@ -128,6 +128,7 @@ def _parse(text: str, dialect, name: str | None, options: ReadOptions) -> GcodeP
         tuple(machine.notes),
         tuple(interp.runs),
         frozenset(interp.computed),
+        tuple(interp.cycles),
     )
 
 

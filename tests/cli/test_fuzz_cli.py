@@ -639,26 +639,12 @@ def _one_line_refusal(capsys, folder: Path, name: str, data: bytes):
 
 @pytest.mark.parametrize("case", NEW_CONSTRUCTS, ids=[c[0] for c in NEW_CONSTRUCTS])
 def test_new_construct_broken_is_refused_in_one_line(capsys, tmp_path, case):
-    """Refused today (the reader does not read these constructs at all) and by the reader
-    of issue 38 (which must say what is broken: next test)."""
+    """Refused in one line, nothing written (what the message says: next test)."""
     name, data, _, _ = case
     _one_line_refusal(capsys, tmp_path, name, data)
 
 
-#: the broken programs whose fault is in a G71's P/Q blocks: the reader refuses the G71
-#: itself until it expands canned cycles, so it cannot say yet what is wrong with its blocks
-_NEED_CYCLES = {"g71_q_block_first", "g71_q_block_never", "p_block_without_end"}
-
-
-def _named_lines(case):
-    name = case[0]
-    mark = pytest.mark.xfail(
-        strict=True, reason="issue 38: the reader does not expand canned cycles yet"
-    )
-    return pytest.param(case, id=name, marks=[mark] if name in _NEED_CYCLES else [])
-
-
-@pytest.mark.parametrize("case", [_named_lines(c) for c in NEW_CONSTRUCTS])
+@pytest.mark.parametrize("case", NEW_CONSTRUCTS, ids=[c[0] for c in NEW_CONSTRUCTS])
 def test_new_construct_broken_names_its_line_and_why(capsys, tmp_path, case):
     name, data, lines, words = case
     for text in _one_line_refusal(capsys, tmp_path, name, data):
@@ -698,7 +684,6 @@ def test_crlf_program_reads_and_keeps_its_bytes(capsys, tmp_path):
     assert prog.read_bytes() == data
 
 
-@pytest.mark.xfail(strict=True, reason="issue 38: the reader does not read Haas G71/G70 yet")
 def test_crlf_haas_program_makes_the_demo_study(capsys, tmp_path):
     data = (DIALECTS / "haas_demo_shaft.nc").read_bytes().replace(b"\n", b"\r\n")
     prog = tmp_path / "haas_crlf.nc"

@@ -124,6 +124,37 @@ def test_own_cycle_programs_match_rs274(path, record_property):
     record_property("worst_mm", worst)
 
 
+def _reader_moves(program) -> list:
+    return [
+        ("arc", m.end, m.center, 1 if m.kind == "ccw" else -1)
+        if m.is_arc
+        else (m.kind, m.end, None, 0)
+        for m in program.moves
+    ]
+
+
+@pytest.mark.rs274
+@needs_rs274
+@pytest.mark.parametrize("path", OWN, ids=lambda p: p.name)
+def test_the_reader_runs_own_cycle_programs_as_rs274(path):
+    """The package's reader (not the small one above) makes rs274's moves, cycle by
+    cycle, with their contours from the O-subs."""
+    text = path.read_text()
+    ref = run_rs274(path)
+    assert ref.error is None, ref.error
+    program = parse_gcode(text, name=path.name)
+    assert program.cycles and all(c.contour for c in program.cycles)
+    _compare(ref.moves, _reader_moves(program), _unit_mm(text))
+
+
+@pytest.mark.rs274
+@needs_rs274
+@pytest.mark.parametrize("path", REFUSED, ids=lambda p: p.name)
+def test_the_reader_refuses_what_rs274_refuses(path):
+    with pytest.raises(InputError, match=r":12: G71: Not monotonic"):
+        parse_gcode(path.read_text(), name=path.name)
+
+
 @pytest.mark.rs274
 @needs_rs274
 @pytest.mark.parametrize("path", REFUSED, ids=lambda p: p.name)

@@ -7,10 +7,9 @@ it, and the refusals with their line and word. The expected values are computed 
 the programs (the README gives the demo shaft's seven features; the G70 passes are also
 checked against rs274 on the program rewritten by tests/gcode/fanuc_rewrite.py).
 
-The reader does not expand canned cycles yet: the tests of the programs in `CYCLES` are
-`xfail(strict=True, reason="issue 38: the reader does not expand canned cycles yet")`, so
-they turn red the day it does and must then be unmarked. The reader's API is used in one
-place each: `_read` (`read_gcode(path, dialect=...)`) and `_dialect` (`.dialect.name/.reason`).
+The canned cycles (G70-G73 with P/Q) are run by the reader: a G70's finish pass is the
+contour, a G71 that no G70 follows gives its own. The reader's API is used in one place
+each: `_read` (`read_gcode(path, dialect=...)`) and `_dialect` (`.dialect.name/.reason`).
 """
 
 from __future__ import annotations
@@ -166,35 +165,8 @@ REFUSED = [
 ]  # fmt: skip
 
 
-#: the programs whose finish contour (or refusal) needs the canned cycles G70-G73 read
-CYCLES = {
-    "haas_demo_shaft.nc",
-    "haas_g71_one_block_inch.nc",
-    "fanuc_g71_two_block.nc",
-    "fanuc_g70_finish_tool.nc",
-    "fanuc_g71_without_g70.nc",
-    "fanuc_g72_facing.nc",
-    "fanuc_g73_pattern_repeat.nc",
-    "fanuc_chamfer_corner_words.nc",
-    "fanuc_duplicate_n_in_cycle.nc",
-}
-NO_CYCLES = pytest.mark.xfail(
-    strict=True, reason="issue 38: the reader does not expand canned cycles yet"
-)
-
-
-def _xfail(construct: str):
-    return pytest.mark.xfail(
-        strict=True, reason=f"issue 38: the reader does not read {construct} yet"
-    )
-
-
-def _marks(file: str) -> tuple:
-    return (NO_CYCLES,) if file in CYCLES else ()
-
-
 def _params(cases):
-    return [pytest.param(c, id=c.file, marks=_marks(c.file)) for c in cases]
+    return [pytest.param(c, id=c.file) for c in cases]
 
 
 # ----------------------------------------------------------------------- the reader's API, guessed
@@ -344,8 +316,7 @@ def test_dialect_is_detected_with_its_reason(case):
     detected = detect_dialect(lex_gcode(read_text_lossless(path), name=str(path)))
     name, reason = detected.name, detected.reason
     assert name == case.dialect, reason
-    if case.file not in CYCLES:  # what read_gcode detects is that
-        assert _dialect(_read(path, None)) == (name, reason)
+    assert _dialect(_read(path, None)) == (name, reason)  # what read_gcode detects is that
     text = path.read_text()
     assert any(c in reason and c in text for c in case.clues), reason
 
@@ -372,7 +343,7 @@ def test_finish_tool_and_its_offset(case):
     assert (word.text, call.tool, call.offset) == case.tool
 
 
-@pytest.mark.parametrize("case", [pytest.param(r, id=r[0], marks=_marks(r[0])) for r in REFUSED])
+@pytest.mark.parametrize("case", [pytest.param(r, id=r[0]) for r in REFUSED])
 def test_refusal_names_the_line_and_the_word(case):
     file, dialect, _, labels, words = case
     path = DIALECTS / file

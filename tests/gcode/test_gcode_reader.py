@@ -19,7 +19,6 @@ from piecs_bayes.gcode import (
     read_gcode,
     read_tool_table,
 )
-from piecs_bayes.gcode._lexer import read_text_lossless
 from piecs_bayes.gcode._rs274 import parse_canon
 from piecs_bayes.geometry import Arc, Line
 
@@ -34,15 +33,7 @@ def test_corpus_is_big_enough():
 
 @pytest.mark.parametrize("path", CORPUS, ids=lambda p: p.name)
 def test_round_trip_is_byte_identical(path):
-    """Lossless text: every program read in full, but those of cycles/ lexed only (their
-    G71/G72 are the cycle expander's test programs, which the reader refuses until it expands
-    canned cycles; the round trip is about the text, not the cycles)."""
-    if path.parent.name == "cycles":
-        source = lex_gcode(read_text_lossless(path), name=str(path))
-        assert all(line.error is None for line in source.lines)
-        assert source.to_bytes() == path.read_bytes()
-        assert source.text.encode() == path.read_bytes()
-        return
+    """Lossless text: every program read in full (its canned cycles run)."""
     program = read_gcode(path)
     assert program.source.to_bytes() == path.read_bytes()
     assert program.text.encode() == path.read_bytes()

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from piecs_bayes.errors import InputError
-from piecs_bayes.gcode import parse_gcode, rs274_path, run_rs274
+from piecs_bayes.gcode import compensated_path, parse_gcode, rs274_path, run_rs274
 
 NC = Path("/usr/share/linuxcnc/ncfiles")
 GLOBS = ("lathe*.ngc", "macros/lathe/*.ngc", "ngcgui_lib/lathe/*.ngc")
@@ -31,6 +31,9 @@ _STD = "ngcgui_lib/lathe/lathe_std.ngc"  # ngcgui's lathe preamble (g20, g64 p#<
 #: program -> how it runs: None (as it stands), or (preamble, arguments of its sub's call)
 RUN: dict[str, tuple[str, list[float]] | None] = {
     "lathe_pawn.ngc": None,
+    "lathe_g70_71_demo.ngc": None,  # G71.1, G71.2 and G70 (two passes) under G42.1
+    "lathe_g7x_face_boring.ngc": None,  # G72 and G70 in a subroutine, a repeat in the contour
+    "lathe_g7x_quadrants.ngc": None,  # G70/G71/G72 in the four quadrants
     "lathecomp.ngc": None,
     # finish diameter, surface speed, depth of cut, feed/rev, length, radius, angle, tool
     "macros/lathe/boring.ngc": ("G18 G21 G7\nG0 X10 Z2\n", [20, 100, 1, 0.1, -20, 2, 0, 1]),
@@ -78,9 +81,6 @@ MORE: dict[str, tuple[str, str, list[float]]] = {
 #: programs not read yet, with the reason and what the refusal says
 NOT_READ: dict[str, tuple[str, str]] = {
     "lathe-g76.ngc": ("G76 threading cycle", "G76: threading"),
-    "lathe_g70_71_demo.ngc": ("G70/G71 canned cycles (not expanded yet)", "not expanded yet"),
-    "lathe_g7x_face_boring.ngc": ("G7x canned cycles (not expanded yet)", "not expanded yet"),
-    "lathe_g7x_quadrants.ngc": ("G7x canned cycles (not expanded yet)", "not expanded yet"),
     "macros/lathe/threading.ngc": ("G76 threading cycle", "G76: threading"),
     "ngcgui_lib/lathe/g76base.ngc": (
         "G76 threading, after o<loadtool> (a subroutine in another file)",
@@ -134,15 +134,37 @@ def _text(rel: str) -> str:
     return _wrapper(rel, *how)
 
 
+def _g70_quirk(program) -> set[int]:
+    """The first two moves of a G70 under G41.1/G42.1 (they carry a diameter): the rs274
+    that Debian ships (2.9.0~pre1) compensates the rapid to the cycle's start point and
+    the move after it as no other move (LinuxCNC fixed it in July 2024: the rapid to X/Z is
+    made uncompensated). Their ends are not compared; everything after them is."""
+    out: set[int] = set()
+    k = 0
+    while k < len(program.moves):
+        m = program.moves[k]
+        if m.via == "G70" and m.comp is not None and m.comp.diameter_mm:
+            out |= {k, k + 1}
+            while k < len(program.moves) and program.moves[k].line == m.line:
+                k += 1
+        k += 1
+    return out
+
+
 def _same_moves(text: str, name: str) -> int:
     program = parse_gcode(text, name=name)
     ref = run_rs274(text, tool_table=TOOLS)
     assert ref.error is None, ref.error
     ours = program.moves
+    if any(m.comp is not None and m.comp.diameter_mm for m in ours):
+        ours = compensated_path(program)  # G41.1/G42.1 carry their diameter
+    skip = _g70_quirk(program)
     assert len(ours) == len(ref.moves), (len(ours), len(ref.moves))
     for k, (a, b) in enumerate(zip(ours, ref.moves, strict=True)):
         unit = 25.4 if program.state(a.line).units == "in" else 1.0
         where = f"move {k + 1} (line {a.line})"
+        if k in skip:
+            continue
         assert (a.kind in ("cw", "ccw")) == (b.kind == "arc"), where
         assert a.kind == b.kind or b.kind == "arc", where
         assert max(abs(u - v) for u, v in zip(a.end, b.end, strict=True)) / unit <= 1e-4 + 1e-9
