@@ -85,10 +85,13 @@ class ProgramAdjustment:
 
 
 def read_program(program):
+    """The program (a path or a read one) as its blocks: `contour_view`."""
+    from ._contour import contour_view
     from ._program import GcodeProgram
     from ._read import read_gcode
 
-    return program if isinstance(program, GcodeProgram) else read_gcode(program)
+    program = program if isinstance(program, GcodeProgram) else read_gcode(program)
+    return contour_view(program)
 
 
 def candidates(program):
@@ -347,11 +350,12 @@ def adjust_program(
     texts = _rewrite_blocks(program, target)
     new_source = program.source.with_line_texts(texts)
     try:
-        new_program = parse_gcode(new_source.text, name=program.name, options=program.options)
+        raw = parse_gcode(new_source.text, name=program.name, options=program.options)
+        new_program = read_program(raw)
     except InputError as exc:
         raise AnalysisError(f"the adjusted program is not valid: {exc}") from None
     _check(program, new_program, target, bmap, name, tool_table, nose_radius_mm)
-    text, n_header = header_checked(new_program, header)
+    text, n_header = header_checked(raw, header)
     changes: list[BlockChange] = []
     for ln in sorted(texts):
         old_m, new_m = moves[ln], new_program.moves_at(ln)[-1]

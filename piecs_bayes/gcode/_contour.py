@@ -18,7 +18,7 @@ The rules: docs/models/part_programs.md, "The finish contour".
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..errors import InputError
 from ..geometry import ProfileError, profile_side
@@ -113,6 +113,24 @@ def compensation_runs(program: GcodeProgram) -> tuple[tuple[Motion, ...], ...]:
             found.append((c.move_index, run))
     found.sort(key=lambda item: item[0])
     return tuple(tuple(r) for _, r in found)
+
+
+def contour_view(program: GcodeProgram) -> GcodeProgram:
+    """`program` with its moves as the blocks that describe the part: each canned
+    cycle's moves replaced by its finish contour's blocks (``GcodeProgram.cycles``: a
+    LinuxCNC G70's O-sub lines, a roughing cycle's P..Q blocks when no G70 cuts them),
+    by nothing for a roughing cycle a G70 cuts. What maps and edits blocks in place
+    (the adjusted program) reads this; a program without cycles is returned as it is."""
+    if not program.cycles and not any(m.via in CYCLE_CODES for m in program.moves):
+        return program
+    records = {c.move_index: c.contour for c in program.cycles if c.finish}
+    out: list[Motion] = []
+    for i, m in enumerate(program.moves):
+        out.extend(records.get(i, ()))
+        if m.via not in CYCLE_CODES:
+            out.append(m)
+    out.extend(records.get(len(program.moves), ()))
+    return replace(program, moves=tuple(out))
 
 
 def _err(program, msg, line=None, value=None) -> InputError:

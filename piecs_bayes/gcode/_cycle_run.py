@@ -266,7 +266,12 @@ def _linuxcnc(interp, pc, line, code, words) -> int:
     ]  # fmt: skip
     unit = _unit(machine)
     index = len(machine.moves)
-    _emit(interp, line, expand_cycle(cycle, contour, position, unit_mm=unit), code)
+    moves = expand_cycle(cycle, contour, position, unit_mm=unit)
+    lead = next((k for k, m in enumerate(moves) if m.contour_line is not None), len(moves))
+    machine.comp = None  # LinuxCNC (since July 2024): the moves to the start point are not
+    _emit(interp, line, moves[:lead], code)  # compensated; the contour's lead-in enters it
+    machine.comp = comp
+    _emit(interp, line, moves[lead:], code)
     profile = expand_cycle(FinishCycle(line.number, *start), contour, start, unit_mm=unit)
     along = [
         replace(machine_motion(line, m, comp), line=m.contour_line)

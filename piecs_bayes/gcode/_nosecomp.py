@@ -238,6 +238,8 @@ class ArcCornerComp:
         self.state = None  # (s, r, tip) while compensating with r > 0
         self.open: _Open | None = None
         self.tip_arc_entry = False
+        dialect = getattr(program, "dialect", None)
+        self.fanuc_startup = dialect is not None and dialect.name in ("fanuc", "haas", "okuma")
 
     def gouge(self, line: int, msg: str) -> AnalysisError:
         err = AnalysisError(f"{self.program.name or '<program>'}:{line}: {msg}")
@@ -392,6 +394,13 @@ class ArcCornerComp:
         a = self.open
         self._check_radius(m)
         d_in = _direction(m, False)
+        if a.entry and not a.arc and self.fanuc_startup:
+            # Fanuc's start-up (type A): the entry block ends with the nose square to
+            # the next block's start, whatever the angle between the two
+            start_b = self._offset_start(m)
+            self._finish(a, start_b, m.line)
+            self.open = self._piece(m, start_b)
+            return
         turn = math.atan2(_cross(a.out_dir, d_in), _dot(a.out_dir, d_in))
         if abs(turn) < TANGENT_TURN:
             self._finish(a, a.end, m.line)

@@ -17,12 +17,14 @@ import math
 from collections import defaultdict
 
 from ..errors import InputError
+from ._contour import CYCLE_CODES
 from ._lexer import edit_line
 
 _COMP_CODES = {"G40", "G41", "G42", "G41.1", "G42.1"}
 _MOTION_CODES = {"G0", "G1", "G2", "G3"}
 _AXIS_WORDS = {"X", "Z", "I", "K", "R", "U", "W", ",C", ",R"}
 _GCODE = {"rapid": "G0", "feed": "G1", "cw": "G2", "ccw": "G3"}
+_KEPT = {"N", "F", "S", "T", "M", "G"}  # what a cycle block keeps written out as moves
 
 
 def _fmt(value: float, decimals: int) -> str:
@@ -78,6 +80,10 @@ def _same(a, b, check_start: bool, omitted=()) -> bool:
     return True
 
 
+def _cycle_line(line) -> bool:
+    return any(w.letter == "G" and w.code in CYCLE_CODES for w in line.words)
+
+
 def write_path_program(program, path) -> tuple[str, tuple[int, ...]]:
     """Text of ``program`` with its motion replaced by ``path`` (moves tagged with lines).
 
@@ -94,10 +100,13 @@ def write_path_program(program, path) -> tuple[str, tuple[int, ...]]:
     for line in program.lines:
         st = program.state(line.number)
         new, old = emitted.get(line.number, []), programmed.get(line.number, [])
-        comp_words = {
+        comp_codes = {
+            k for k, w in enumerate(line.words) if w.letter == "G" and w.code in _COMP_CODES
+        }
+        comp_words = comp_codes | {
             k
             for k, w in enumerate(line.words)
-            if (w.letter == "G" and w.code in _COMP_CODES) or w.letter in ("D", "L")
+            if comp_codes and w.letter in ("D", "L") and not _cycle_line(line)
         }
         arcs = any(m.kind in ("cw", "ccw") for m in old)
         omitted = [k for k, letter in enumerate("XZ") if line.word(letter) is None]
@@ -121,11 +130,19 @@ def write_path_program(program, path) -> tuple[str, tuple[int, ...]]:
                 for k, w in enumerate(line.words)
                 if (w.letter == "G" and w.code in _MOTION_CODES) or w.letter in _AXIS_WORDS
             }
+            if _cycle_line(line):
+                # a canned cycle written out as its moves: the cycle and its words go
+                motion |= {
+                    k
+                    for k, w in enumerate(line.words)
+                    if (w.letter == "G" and w.code in CYCLE_CODES) or w.letter not in _KEPT
+                }
             if not new:  # keep the motion mode, drop the axes
                 motion = {k for k in motion if line.words[k].letter != "G"}
             remove |= motion
             inserted = [move_words(m, m.start, st) for m in new]
-            if new and _GCODE[new[-1].kind] != st.motion and st.motion is not None:
+            restore = st.motion is not None and not _cycle_line(line)
+            if new and _GCODE[new[-1].kind] != st.motion and restore:
                 inserted.append([st.motion])
         anchor = -1
         if inserted:

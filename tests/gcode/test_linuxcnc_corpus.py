@@ -137,17 +137,17 @@ def _text(rel: str) -> str:
 def _g70_quirk(program) -> set[int]:
     """The first two moves of a G70 under G41.1/G42.1 (they carry a diameter): the rs274
     that Debian ships (2.9.0~pre1) compensates the rapid to the cycle's start point and
-    the move after it as no other move (LinuxCNC fixed it in July 2024: the rapid to X/Z is
-    made uncompensated). Their ends are not compared; everything after them is."""
+    the move after it as no other move (LinuxCNC fixed it in July 2024: the moves to the
+    start point are made uncompensated, the contour's lead-in enters compensation, as
+    the reader does). Their ends are not compared; everything after them is."""
     out: set[int] = set()
-    k = 0
-    while k < len(program.moves):
-        m = program.moves[k]
-        if m.via == "G70" and m.comp is not None and m.comp.diameter_mm:
+    moves = program.moves
+    for k, m in enumerate(moves):
+        if m.via != "G70" or (k and moves[k - 1].line == m.line):
+            continue
+        same = [n for n in moves[k:] if n.line == m.line]
+        if any(n.comp is not None and n.comp.diameter_mm for n in same):
             out |= {k, k + 1}
-            while k < len(program.moves) and program.moves[k].line == m.line:
-                k += 1
-        k += 1
     return out
 
 
