@@ -21,12 +21,13 @@ import difflib
 import math
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..errors import AnalysisError, InputError
 from ..geometry import Arc, Line, Profile
+from ._adjust_corners import CORNER_WORDS, corner_blocks, corner_size, corner_vertex
 from ._header import diff_labels, header_checked
 
 
@@ -44,6 +45,8 @@ class BlockMap:
     lines: dict
     connecting: tuple[int, ...]
     reversed: frozenset
+    corners: dict = field(default_factory=dict)
+    """line -> the feature its corner word (``,C``/``,R``, G7x ``C``/``A``) inserts."""
 
     def __repr__(self) -> str:
         parts = ", ".join(f"{k}: {list(v)}" for k, v in self.features.items())
@@ -161,27 +164,37 @@ def map_blocks_to_profile(program, profile: Profile, *, tol_mm: float = 0.01, ma
     moves = candidates(program)
     if not moves:
         raise AnalysisError(f"{name}: no finish-cut block (no compensated or feed move) found")
-    by_line = {m.line: m for m in moves}
+    corner_moves = {id(c) for _, c in corner_blocks(moves).values()}
+    by_line = {m.line: m for m in moves if id(m) not in corner_moves}
     lines, rev, forced = _forced_lines(program, profile, mapping, by_line)
+    corners: dict[int, str] = {}
     for m in moves:
         if m.line in forced:
             continue
         hits = [(f, r) for f in profile.features for ok, r in [_matches(m, f, tol_mm)] if ok]
         if len(hits) >= 1:
             f, r = hits[0]
-            lines[m.line] = f.id
+            (corners if id(m) in corner_moves else lines)[m.line] = f.id
             if r:
                 rev.add(f.id)
-    ordered = [m for m in moves if m.line in by_line]
+    ordered = [m for m in moves if m.line in by_line and id(m) not in corner_moves]
     connecting = _connecting_blocks(program, ordered, lines, name, tol_mm)
-    features = {f.id: tuple(ln for ln in sorted(lines) if lines[ln] == f.id) for f in profile}
+    cut = {(ln, 0): fid for ln, fid in lines.items()}
+    cut.update({(ln, 1): fid for ln, fid in corners.items()})  # a block's corner after it
+    features = {f.id: tuple(k[0] for k in sorted(cut) if cut[k] == f.id) for f in profile}
     missing = [fid for fid, lns in features.items() if not lns]
     if missing:
         raise AnalysisError(
             f"{name}: no finish-cut block cuts feature(s) {', '.join(map(repr, missing))} "
             f"(tolerance {tol_mm:g} mm); give an explicit mapping"
         )
-    return BlockMap(features, dict(sorted(lines.items())), tuple(connecting), frozenset(rev))
+    return BlockMap(
+        features,
+        dict(sorted(lines.items())),
+        tuple(connecting),
+        frozenset(rev),
+        dict(sorted(corners.items())),
+    )
 
 
 def _forced_lines(program, profile: Profile, mapping, by_line):
@@ -343,29 +356,31 @@ def adjust_program(
             )
     bmap = map_blocks_to_profile(program, nominal_profile, tol_mm=tol_mm, mapping=mapping)
     _check_sides(program, nominal_profile, bmap)
-    moves = {m.line: m for m in program.moves}
-    target = _targets(program, moves, nominal_profile, adjusted_profile, bmap, tol_mm)
+    blocks = _as_blocks(program)  # a corner block: one move, to its vertex
+    moves = {m.line: m for m in blocks.moves}
+    target = _targets(blocks, moves, nominal_profile, adjusted_profile, bmap, tol_mm)
+    sizes = _corner_targets(blocks, nominal_profile, adjusted_profile, bmap, target, name)
     _check_shifts(moves, target, bmap, name, max_correction_mm)
-    _check_editable(program, target, name)
-    texts = _rewrite_blocks(program, target)
+    _check_editable(blocks, target, sizes, name)
+    texts = _rewrite_blocks(blocks, target, sizes)
     new_source = program.source.with_line_texts(texts)
     try:
         raw = parse_gcode(new_source.text, name=program.name, options=program.options)
         new_program = read_program(raw)
     except InputError as exc:
         raise AnalysisError(f"the adjusted program is not valid: {exc}") from None
-    _check(program, new_program, target, bmap, name, tool_table, nose_radius_mm)
+    _check(program, new_program, target, set(sizes), name, tool_table, nose_radius_mm)
     text, n_header = header_checked(raw, header)
     changes: list[BlockChange] = []
     for ln in sorted(texts):
-        old_m, new_m = moves[ln], new_program.moves_at(ln)[-1]
+        new_end = target[ln][0] if ln in sizes else new_program.moves_at(ln)[-1].end
         changes.append(
             BlockChange(
                 ln,
                 bmap.lines.get(ln),
                 program.source.line(ln).text,
                 texts[ln],
-                math.dist(old_m.end, new_m.end),
+                math.dist(moves[ln].end, new_end),
             )
         )
     old_label, new_label = diff_labels(program.name, output_name)
@@ -378,6 +393,57 @@ def adjust_program(
         )
     )
     return ProgramAdjustment(text, diff, tuple(changes), bmap, n_header)
+
+
+def _as_blocks(program):
+    """`program` with each corner block as one move to its vertex (the point its words
+    program; the corner's own move dropped): what is rewritten is the block's words."""
+    corners = corner_blocks(program.moves)
+    if not corners:
+        return program
+    out, moves = [], list(program.moves)
+    for k, m in enumerate(moves):
+        pair = corners.get(m.line)
+        if pair is None:
+            out.append(m)
+            continue
+        if m is pair[1]:
+            continue
+        nxt = moves[k + 2] if k + 2 < len(moves) else None
+        vertex = None if nxt is None else _vertex_of(m, nxt)
+        out.append(m if vertex is None else replace(m, end=vertex))
+    return replace(program, moves=tuple(out))
+
+
+def _vertex_of(m, nxt):
+    """Where the lines of move `m` and the move after its corner meet."""
+    if m.is_arc or nxt.is_arc:
+        return None
+    return corner_vertex(Line("a", m.start, m.end), Line("b", nxt.start, nxt.end))
+
+
+def _corner_targets(blocks, nominal_profile, adjusted_profile, bmap, target, name):
+    """``{line: (corner word letter, new value mm)}`` for the corner blocks; their
+    targets become the adjusted vertex (where the adjusted lines meet)."""
+    sizes: dict[int, tuple[str, float]] = {}
+    order = [m.line for m in blocks.moves]
+    for ln, cid in bmap.corners.items():
+        k = order.index(ln)
+        nxt = bmap.lines.get(order[k + 1]) if k + 1 < len(order) else None
+        fid = bmap.lines.get(ln)
+        src = blocks.source.line(ln)
+        letter = next((w.letter for w in src.words if w.letter in CORNER_WORDS), None)
+        f, g = (adjusted_profile[x] if x else None for x in (fid, nxt))
+        vertex = None if f is None or g is None else corner_vertex(f, g)
+        if vertex is None or letter is None:
+            raise AnalysisError(
+                f"{name}:{ln}: the corner of this block is not between two line features "
+                "(a corner next to an arc is not rewritten); map it explicitly or program "
+                "the corner as a block of its own"
+            )
+        target[ln] = (vertex, None)
+        sizes[ln] = (letter, corner_size(letter, adjusted_profile[cid], vertex, f, g))
+    return sizes
 
 
 def _targets(program, moves, nominal_profile, adjusted_profile, bmap, tol_mm):
@@ -417,26 +483,31 @@ def _check_shifts(moves, target, bmap, name, max_correction_mm) -> None:
             )
 
 
-def _check_editable(program, lines, name) -> None:
+def _check_editable(program, lines, sizes, name) -> None:
     """Each block to rewrite must be editable where it stands: it ran once, its words
-    are numbers, it makes one move with X/Z words (not U/W, not a ,C/,R corner)."""
+    are numbers, it makes one move with X/Z words (not U/W) or carries a corner between
+    two lines (`_adjust_corners`)."""
     for ln in sorted(lines):
         why = program.edit_refusal(ln)
         if why is None:
             letters = {w.letter for w in program.source.line(ln).words}
             if {"U", "W"} & letters:
                 why = f"line {ln} moves by U/W (incremental words), which are not rewritten yet"
-            elif {",C", ",R"} & letters or len(program.moves_at(ln)) > 1:
-                why = f"line {ln} makes more than one move (a ,C/,R corner)"
+            elif ln not in sizes and ({",C", ",R"} & letters or len(program.moves_at(ln)) > 1):
+                why = (
+                    f"line {ln} makes more than one move (a corner next to an arc, or a "
+                    "block the contour does not cut as its features)"
+                )
         if why is not None:
             raise AnalysisError(
                 f"{name}:{ln}: the adjusted program cannot edit this block in place: {why}"
             )
 
 
-def _rewrite_blocks(program, target) -> dict[int, str]:
+def _rewrite_blocks(program, target, sizes) -> dict[int, str]:
     """New texts of the target blocks, block by block, tracking where the new program
-    really is (a block that omits an axis follows the new position)."""
+    really is (a block that omits an axis follows the new position); ``sizes`` the new
+    corner words of corner blocks."""
     texts: dict[int, str] = {}
     pos_new = None
     for m in program.moves:
@@ -445,15 +516,16 @@ def _rewrite_blocks(program, target) -> dict[int, str]:
             pos_new = _realised_end(m, start, program)
             continue
         end, centre = target[m.line]
-        new_text = _block_text(program, m, start, end, centre)
+        new_text = _block_text(program, m, start, end, centre, sizes.get(m.line))
         if new_text is not None:
             texts[m.line] = new_text
         pos_new = end
     return texts
 
 
-def _block_text(program, m, start, end, centre):
-    """The text of block ``m`` moved to ``end`` (and ``centre``), or None if unchanged."""
+def _block_text(program, m, start, end, centre, corner=None):
+    """The text of block ``m`` moved to ``end`` (and ``centre``; ``corner``: its corner
+    word's letter and new value in mm), or None if unchanged."""
     from ._lexer import edit_line, format_number
 
     line = program.source.line(m.line)
@@ -472,6 +544,8 @@ def _block_text(program, m, start, end, centre):
         else:
             c = centre if st.arc_absolute else (centre[0] - start[0], centre[1] - start[1])
             want["I"], want["K"] = c[0] * scale, c[1] * scale
+    if corner is not None:
+        want[corner[0]] = corner[1] * scale
     values, insert = {}, []
     for letter, v in want.items():
         idx = next((k for k, w in enumerate(line.words) if w.letter == letter), None)
@@ -525,13 +599,13 @@ def _realised_end(m, start, program):
     return (m.end[0] if line.word("X") else start[0], m.end[1] if line.word("Z") else start[1])
 
 
-def _check(old, new, target, bmap, name, tool_table, nose_radius_mm):
+def _check(old, new, target, corner_lines, name, tool_table, nose_radius_mm):
     from ._nosecomp import compensated_path
 
     if len(old.moves) != len(new.moves):
         raise AnalysisError(f"{name}: the adjusted program has a different number of moves")
     for a, b in zip(old.moves, new.moves, strict=True):
-        if b.line in target:
+        if b.line in target and b.line not in corner_lines:  # a corner's end: its vertex
             end, centre = target[b.line]
             st = new.state(b.line)
             tol = 2 * 10.0 ** -_default_decimals(new, st.units) * (25.4 if st.units == "in" else 1)

@@ -273,11 +273,13 @@ def _linuxcnc(interp, pc, line, code, words) -> int:
     machine.comp = comp
     _emit(interp, line, moves[lead:], code)
     profile = expand_cycle(FinishCycle(line.number, *start), contour, start, unit_mm=unit)
-    along = [
-        replace(machine_motion(line, m, comp), line=m.contour_line)
-        for m in profile
-        if m.contour_line is not None
-    ]
+    along: list[Motion] = []
+    for m in profile:
+        if m.contour_line is None:
+            continue
+        corner = bool(along) and along[-1].line == m.contour_line  # an A/C corner's move
+        via = "" if not corner else ",R" if m.is_arc else ",C"
+        along.append(replace(machine_motion(line, m, comp), line=m.contour_line, via=via))
     if along:
         along[0] = replace(along[0], entry=comp is not None)
     blocks = tuple(interp.lines[i].number for i in range(start_index + 1, end_index))

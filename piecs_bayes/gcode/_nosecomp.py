@@ -846,12 +846,14 @@ def nose_compensate(
     `infer_kind`, or None: not checked) says where the material is, and a G41/G42
     on the material side is refused (`check_comp_sides`).
     """
+    from ._contour import contour_view
     from ._writer import write_path_program
 
+    blocks = contour_view(program)  # a cycle's sides are its contour's, not its passes'
     if kind == "auto":
-        kind = infer_kind(program)
+        kind = infer_kind(blocks)
     if kind is not None:
-        check_comp_sides(program, axial_air(kind))
+        check_comp_sides(blocks, axial_air(kind))
     path = compensated_path(
         program, corner=corner, tool_table=tool_table, nose_radius=nose_radius, start=start
     )
