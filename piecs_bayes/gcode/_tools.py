@@ -70,8 +70,10 @@ def parse_tool_table(text: str, *, units: str = "mm", name: str | None = None):
                     line=number,
                 )
             letter = m.group(1).upper()
-            if letter in words:
+            if letter in words and letter != "P":
                 raise InputError(f"word {letter} appears twice", file=name, line=number)
+            # a second P (the pocket, which nothing here uses) wins, as in LinuxCNC's
+            # loader: its own lathe-comp test table writes "T7 P7 Z0.0 P0.0"
             words[letter] = float(m.group(2))
             pos = m.end()
         unknown = set(words) - set("TPDQIJXYZABCUVW")
