@@ -228,6 +228,13 @@ class Interpreter:
         self.finished: set[int] = set()  # line indices a G70 cut
         self.cycle_setup: dict[str, dict[str, float]] = {}  # Fanuc two-block form
         self.in_cycle: int | None = None  # the line of the cycle whose contour runs
+        self.cycle_codes = table.cycles
+        self.cycle_lines = {
+            ln.number
+            for ln in src.lines
+            if table.cycles
+            and any(w.letter == "G" and w.expr is None and w.code in table.cycles for w in ln.words)
+        }
         self.structure = scan(src, self._err_at, self.linuxcnc)
 
     # -- errors and values ------------------------------------------------------------------
@@ -378,8 +385,9 @@ class Interpreter:
         if not line.words and not line.assignments:
             return pc + 1
         block = self.block(line)
-        if self.table.cycles and any(
-            w.letter == "G" and w.code in self.table.cycles for w in block.words
+        codes = self.cycle_codes
+        if line.number in self.cycle_lines or (
+            line.computed and any(w.letter == "G" and w.code in codes for w in block.words)
         ):
             if line.assignments:
                 raise self.err(line, "a canned cycle block with parameter assignments")

@@ -16,10 +16,12 @@ What the lexer accepts: docs/models/part_programs.md, "Lexing".
 
 from __future__ import annotations
 
+import copy
 import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
+from functools import cached_property
 from pathlib import Path
 
 from ..errors import InputError
@@ -177,7 +179,7 @@ class SourceLine:
             or self.error
         )
 
-    @property
+    @cached_property
     def computed(self) -> bool:
         """Some word's value is computed (a parameter or an expression)."""
         return any(w.expr is not None for w in self.words)
@@ -607,15 +609,29 @@ def lex_gcode(text: str, *, name: str | None = None, strict: bool = True) -> Gco
     **Returns:** a :class:`GcodeText`; ``GcodeText.text == text`` always.
     """
     lines: list[SourceLine] = []
-    pos, number = 0, 0
+    seen: dict[str, SourceLine] = {}  # a text lexed before gives the same line (CAM
+    pos, number = 0, 0  # output repeats its rapids, M codes and cycle blocks)
     for m in _EOL.finditer(text):
         number += 1
-        lines.append(lex_line(text[pos : m.start()], m.group(), number, name, strict=strict))
+        lines.append(_lex_cached(seen, text[pos : m.start()], m.group(), number, name, strict))
         pos = m.end()
     if pos < len(text):
         number += 1
-        lines.append(lex_line(text[pos:], "", number, name, strict=strict))
+        lines.append(_lex_cached(seen, text[pos:], "", number, name, strict))
     return GcodeText(tuple(lines), name)
+
+
+def _lex_cached(seen, raw: str, eol: str, number: int, name, strict: bool) -> SourceLine:
+    hit = seen.get(raw)
+    if hit is None:
+        line = lex_line(raw, eol, number, name, strict=strict)
+        if line.error is None and len(raw) <= 256:
+            seen[raw] = line
+        return line
+    line = copy.copy(hit)  # frozen: its number and ending set as __init__ would
+    object.__setattr__(line, "number", number)
+    object.__setattr__(line, "eol", eol)
+    return line
 
 
 def read_text_lossless(path) -> str:

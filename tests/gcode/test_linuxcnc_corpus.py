@@ -213,3 +213,73 @@ def test_what_is_not_read_yet_is_refused_by_name(rel):
         parse_gcode(text, name=rel)
     assert message in str(exc.value), (why, str(exc.value))
     assert exc.value.line is not None
+
+
+# ------------------------------------------------------------------ the command line and init
+#: what `init` makes of each program read: its study's number of features (with `--run`
+#: where the program has several compensated runs), or why it has no finish contour
+NO_COMP = "no nose compensation (G41/G42)"
+INIT: dict[str, list[tuple[int | None, int]] | str] = {
+    "lathe_g70_71_demo.ngc": [(None, 18)],  # the pawn: G70's contour under G42.1
+    "lathecomp.ngc": [(1, 4), (2, 5)],  # two runs: G42, then G41
+    "ngcgui_lib/lathe/taper-od.ngc": [(None, 3)],
+    **dict.fromkeys(
+        (
+            "lathe_g7x_face_boring.ngc", "lathe_g7x_quadrants.ngc", "lathe_pawn.ngc",
+            "macros/lathe/boring.ngc", "macros/lathe/chamfer.ngc", "macros/lathe/facing.ngc",
+            "macros/lathe/radius.ngc", "macros/lathe/turning.ngc", "ngcgui_lib/lathe/id.ngc",
+            "ngcgui_lib/lathe/od.ngc", _STD,
+        ),
+        NO_COMP,
+    ),
+}  # fmt: skip
+
+
+def test_every_program_read_has_its_init_entry():
+    assert sorted(INIT) == sorted(RUN)
+
+
+def _as_file(tmp_path, rel) -> Path:
+    path = tmp_path / rel.replace("/", "_")
+    path.write_text(_text(rel))
+    return path
+
+
+@pytest.mark.parametrize("rel", sorted(RUN))
+def test_init_makes_a_study_from_every_finish_contour(rel, tmp_path, capsys):
+    """A study from every program with a finish contour (G41/G42 in it); the others are
+    refused saying there is no nose compensation, in one line."""
+    from piecs_bayes.cli import main
+
+    if not (NC / rel).is_file():
+        pytest.skip(f"{rel} is not installed")
+    path = _as_file(tmp_path, rel)
+    want = INIT[rel]
+    if isinstance(want, str):
+        assert main(["init", str(path), "--out", str(tmp_path / "s.toml"), "-q"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert want in err and len(err.splitlines()) == 1, err
+        return
+    for run, features in want:
+        out = tmp_path / f"s{run}.toml"
+        argv = ["init", str(path), "--out", str(out), "-q", *(["--run", str(run)] if run else [])]
+        assert main(argv) == 0, capsys.readouterr().err
+        assert out.read_text().count("[[profile.feature]]") == features
+
+
+@pytest.mark.skipif(rs274_path() is None, reason="LinuxCNC's rs274 is not installed")
+@pytest.mark.parametrize("rel", sorted(RUN))
+def test_gcode_check_rs274_agrees_on_every_program(rel, tmp_path, capsys, monkeypatch):
+    """`gcode check --rs274` on each program as a user runs it (the tool table giving
+    tools 1-10): rs274 agrees."""
+    from piecs_bayes.cli import main
+
+    if not (NC / rel).is_file():
+        pytest.skip(f"{rel} is not installed")
+    monkeypatch.setenv("HOME", str(tmp_path))
+    path = _as_file(tmp_path, rel)
+    (tmp_path / "tools.tbl").write_text(TOOLS)
+    argv = ["gcode", "check", str(path), "--rs274", "--tool-table", str(tmp_path / "tools.tbl")]
+    rc = main(argv)
+    out = capsys.readouterr().out
+    assert rc == 0 and "rs274 agrees" in out, out[-800:]
