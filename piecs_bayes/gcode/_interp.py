@@ -23,7 +23,7 @@ from ..errors import InputError
 from ._cycle_run import finish_cycles, run_cycle
 from ._dialect import DialectTable
 from ._expr import ExpressionError, Param, compile_value
-from ._lexer import GcodeText, SourceLine
+from ._lexer import GcodeText, SourceLine, code_of
 from ._modal import Block, BlockWord, ModalMachine
 from ._options import ReadOptions
 from ._params import ParameterError, Parameters
@@ -229,12 +229,23 @@ class Interpreter:
         self.cycle_setup: dict[str, dict[str, float]] = {}  # Fanuc two-block form
         self.in_cycle: int | None = None  # the line of the cycle whose contour runs
         self.cycle_codes = table.cycles
-        self.cycle_lines = {
-            ln.number
-            for ln in src.lines
-            if table.cycles
-            and any(w.letter == "G" and w.expr is None and w.code in table.cycles for w in ln.words)
-        }
+        self.cycle_lines: set[int] = set()  # lines that call a canned cycle
+        self.special_lines: set[int] = set()  # lines with G65 or M73
+        self.computed_g: set[int] = set()  # lines with a G or M code computed
+        self.flow_lines: set[int] = set()  # lines that end, call or return (M codes)
+        for ln in src.lines:
+            for w in ln.words:
+                if w.letter not in "GM":
+                    continue
+                if w.expr is not None:
+                    self.computed_g.add(ln.number)
+                    continue
+                if w.code in table.cycles:
+                    self.cycle_lines.add(ln.number)
+                elif w.code in ("M2", "M30", "M97", "M98", "M99"):
+                    self.flow_lines.add(ln.number)
+                elif w.code in ("G65", "M73"):
+                    self.special_lines.add(ln.number)
         self.structure = scan(src, self._err_at, self.linuxcnc)
 
     # -- errors and values ------------------------------------------------------------------
@@ -255,14 +266,16 @@ class Interpreter:
         return self.machine.predefined(ref)
 
     def value(self, node, line: SourceLine, what: str) -> float:
-        fn = self.compiled.get(id(node))
-        if fn is None:
-            fn = compile_value(node, self.table.rules, self.params.get, self.params.exists)
-            self.compiled[id(node)] = fn
+        fn = self.compiled.get(id(node)) or self._compile(node)
         try:
             return fn()
         except (ExpressionError, ParameterError) as exc:
             raise self.err(line, f"{what}: {exc}") from None
+
+    def _compile(self, node):
+        fn = compile_value(node, self.table.rules, self.params.get, self.params.exists)
+        self.compiled[id(node)] = fn
+        return fn
 
     # -- running ----------------------------------------------------------------------------
 
@@ -387,23 +400,31 @@ class Interpreter:
         block = self.block(line)
         codes = self.cycle_codes
         if line.number in self.cycle_lines or (
-            line.computed and any(w.letter == "G" and w.code in codes for w in block.words)
+            line.number in self.computed_g
+            and any(w.letter == "G" and w.code in codes for w in block.words)
         ):
             if line.assignments:
                 raise self.err(line, "a canned cycle block with parameter assignments")
             return run_cycle(self, pc, line, block)
-        values = [
-            (a, self.value(a.value, line, f"{a.text}")) for a in line.assignments
-        ]  # evaluated before the line runs (LinuxCNC: set after it is read)
-        g65 = next((w for w in block.words if w.letter == "G" and w.code == "G65"), None)
-        if g65 is not None:
+        values = (
+            [(a, self.value(a.value, line, a.text)) for a in line.assignments]
+            if line.assignments
+            else ()
+        )  # evaluated before the line runs (LinuxCNC: set after it is read)
+        special = line.number in self.special_lines or line.number in self.computed_g
+        if special and any(w.letter == "G" and w.code == "G65" for w in block.words):
             self.assign(values, line)
             return self.g65(pc, line, block)
         if block.words:
             self.machine.execute(block)
-            if self.frames and any(w.letter == "M" and w.code == "M73" for w in block.words):
+            if (
+                special
+                and self.frames
+                and any(w.letter == "M" and w.code == "M73" for w in block.words)
+            ):
                 self.frames[-1].modes = self.machine.saved  # restored when the call returns
-        self.assign(values, line)
+        if values:
+            self.assign(values, line)
         return self.flow(pc, line, block)
 
     def block(self, line: SourceLine) -> Block:
@@ -414,20 +435,30 @@ class Interpreter:
             return b
         self.computed.add(line.number)
         words = []
+        compiled = self.compiled
         for k, w in enumerate(line.words):
-            if w.expr is None:
-                words.append(BlockWord.of(w.letter, w.value, w.text, k))
+            expr = w.expr
+            if expr is None:
+                words.append(w)  # a lexed word has what a block word has
                 continue
             if (
                 not self.linuxcnc
-                and isinstance(w.expr, Param)
-                and isinstance(w.expr.ref, int)
-                and not self.params.is_set(w.expr.ref)
+                and isinstance(expr, Param)
+                and isinstance(expr.ref, int)
+                and not self.params.is_set(expr.ref)
             ):
                 continue  # Fanuc: a word whose variable is vacant is as if absent
-            v = self.value(w.expr, line, f"word {w.letter}{w.text}")
-            words.append(BlockWord.of(w.letter, v, _fmt(v), k))
-        return Block(line, tuple(words))
+            fn = compiled.get(id(expr)) or self._compile(expr)
+            try:
+                v = fn()
+            except (ExpressionError, ParameterError) as exc:
+                raise self.err(line, f"word {w.letter}{w.text}: {exc}") from None
+            letter = w.letter
+            # its text: as written ([#1 + 2]) for messages; a T word's number for its digits
+            text = _fmt(v) if letter == "T" else w.text
+            code = code_of(letter, v) if letter in "GM" else ""
+            words.append(BlockWord(letter, v, text, k, code))
+        return Block.of(line, tuple(words))
 
     def assign(self, values, line: SourceLine) -> None:
         for a, v in values:
@@ -450,6 +481,8 @@ class Interpreter:
     # -- what ends, calls and returns --------------------------------------------------------
 
     def flow(self, pc: int, line: SourceLine, block: Block) -> int | None:
+        if line.number not in self.flow_lines and line.number not in self.computed_g:
+            return pc + 1  # no M2/M30/M97/M98/M99: on to the next line
         codes = {w.code for w in block.words if w.letter == "M"}
         if codes & {"M2", "M30"}:
             if self.frames and not self.linuxcnc:

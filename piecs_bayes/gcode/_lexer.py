@@ -16,11 +16,10 @@ What the lexer accepts: docs/models/part_programs.md, "Lexing".
 
 from __future__ import annotations
 
-import copy
 import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -65,7 +64,7 @@ class Word:
             return 0
         return len(self.text.split(".", 1)[1]) if "." in self.text else 0
 
-    @property
+    @cached_property
     def code(self) -> str:
         """Normalised code for G and M words: ``"G1"``, ``"G41.1"``, ``"M30"``."""
         if self.expr is not None:
@@ -179,10 +178,11 @@ class SourceLine:
             or self.error
         )
 
-    @cached_property
-    def computed(self) -> bool:
-        """Some word's value is computed (a parameter or an expression)."""
-        return any(w.expr is not None for w in self.words)
+    computed: bool = field(init=False, repr=False, compare=False)
+    """Some word's value is computed (a parameter or an expression)."""
+
+    def __post_init__(self):
+        object.__setattr__(self, "computed", any(w.expr is not None for w in self.words))
 
 
 @dataclass(frozen=True)
@@ -542,6 +542,7 @@ def _plain_line(number: int, text: str, eol: str, words: tuple) -> SourceLine:
     """``SourceLine(number, text, eol, words)``, as `_plain_word` builds a word."""
     line = _new(SourceLine)
     line.__dict__.update(_LINE_DEFAULTS, number=number, text=text, eol=eol, words=words)
+    line.__dict__["computed"] = False  # plain words only
     return line
 
 
@@ -592,7 +593,9 @@ def lex_line(
 
 
 _LINE_DEFAULTS = {
-    f.name: f.default for f in fields(SourceLine) if f.name not in ("number", "text", "eol")
+    f.name: f.default
+    for f in fields(SourceLine)
+    if f.name not in ("number", "text", "eol", "computed")
 }
 
 
@@ -628,9 +631,10 @@ def _lex_cached(seen, raw: str, eol: str, number: int, name, strict: bool) -> So
         if line.error is None and len(raw) <= 256:
             seen[raw] = line
         return line
-    line = copy.copy(hit)  # frozen: its number and ending set as __init__ would
-    object.__setattr__(line, "number", number)
-    object.__setattr__(line, "eol", eol)
+    line = _new(SourceLine)  # a copy, its number and ending its own (as `_plain_line`)
+    line.__dict__.update(hit.__dict__)
+    line.__dict__["number"] = number
+    line.__dict__["eol"] = eol
     return line
 
 

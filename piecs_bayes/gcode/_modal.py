@@ -30,6 +30,7 @@ from ._params import ParameterError
 from ._program import CompEvent, CompSetting, LineState, Motion, Note, ToolWord
 
 MM_PER_INCH = 25.4
+_new = object.__new__
 # Arc tolerances (mm): how far an R arc may fall short of its chord, and how much an
 # I/K arc's start and end radii may differ; chosen to accept what rs274 accepts
 # on the test corpus (0.00005 in; 0.01 mm or 0.001 in times sqrt(2), twice).
@@ -79,6 +80,14 @@ class Block:
 
     line: SourceLine
     words: tuple[BlockWord, ...]
+
+    @classmethod
+    def of(cls, line: SourceLine, words: tuple) -> Block:
+        """``Block(line, words)``, fast (a block is made for every computed line run)."""
+        block = _new(cls)
+        block.__dict__["line"] = line
+        block.__dict__["words"] = words
+        return block
 
     @classmethod
     def plain(cls, line: SourceLine) -> Block:
@@ -157,6 +166,7 @@ class ModalMachine:
         self.corner: tuple[Motion, BlockWord] | None = None
         self.contour_mode = False  # reading a LinuxCNC G7x contour: A/C words are corners
         self.corners: dict[int, tuple[float, float]] = {}  # move index -> (fillet, chamfer)
+        self._last_state: tuple | None = None
         self.moves: list[Motion] = []
         self.events: list[Motion | CompEvent] = []
         self.notes: list[Note] = []
@@ -196,7 +206,7 @@ class ModalMachine:
                       "unknown until X and Z are programmed absolutely")  # fmt: skip
 
     def state(self) -> LineState:
-        return LineState(
+        key = (
             self.units,
             self.diameter,
             self.absolute,
@@ -206,6 +216,12 @@ class ModalMachine:
             self.t_cutting,
             self.feed_per_rev,
         )
+        last = self._last_state
+        if last is not None and last[0] == key:
+            return last[1]  # modes unchanged: the same (immutable) state
+        state = LineState(*key)
+        self._last_state = (key, state)
+        return state
 
     def save_modes(self) -> _Modes:
         return _Modes(
@@ -388,11 +404,58 @@ class ModalMachine:
                 words = tuple(w for w in block.words if w.letter not in ("A", "C"))
                 block = Block(line, words)
         n_moves = len(self.moves)
+        if corner is None and self._straight(block):
+            return
         self._execute(block)
         if corner is not None:
             if len(self.moves) == n_moves:
                 raise self.err(line, "a G7x corner (A/C) needs a move in its block")
             self.corners[len(self.moves) - 1] = (self.length(corner[0]), self.length(corner[1]))
+
+    def _straight(self, block: Block) -> bool:
+        """The common block, fast: G0/G1, X, Z, F, N words only, each at most once, from
+        and to a known position, no corner waiting. True when done; False (nothing
+        changed) for every other block, which `_execute` runs."""
+        if self.corner is not None:
+            return False
+        code = x = z = f = None
+        for w in block.words:
+            letter = w.letter
+            if letter == "X" and x is None:
+                x = w.value
+            elif letter == "Z" and z is None:
+                z = w.value
+            elif letter == "F" and f is None:
+                f = w.value
+            elif letter == "G" and code is None and w.code in ("G0", "G1"):
+                code = w.code
+            elif letter != "N":
+                return False
+        motion = code or self.motion
+        if x is None and z is None:
+            if code is None and f is None:
+                return False
+        elif motion not in ("G0", "G1"):
+            return False
+        x0, z0 = self.pos
+        x1, z1 = x0, z0
+        if x is not None:
+            v = self.x_length(x)
+            x1 = v if self.absolute else x0 + v
+        if z is not None:
+            v = self.length(z)
+            z1 = v if self.absolute else z0 + v
+        if x0 != x0 or z0 != z0 or x1 != x1 or z1 != z1:  # NaN: a position not known
+            return False
+        if f is not None:
+            self.feed = f
+        self.motion = motion
+        if x is not None or z is not None:
+            m = self._motion(block.line, _KIND[motion], (x0, z0), (x1, z1), None)
+            self.moves.append(m)
+            self.events.append(m)
+            self.pos = (x1, z1)
+        return True
 
     def _execute(self, block: Block) -> None:
         line = block.line
@@ -821,15 +884,16 @@ class ModalMachine:
         self._emit(line, kind, end, center)
 
     def _motion(self, line, kind, start, end, center, via="") -> Motion:
-        m = Motion(
-            kind,
-            start,
-            end,
-            line.number,
-            center,
-            self.comp,
-            self.comp is not None and self.first_after_on,
-            via,
+        m = _new(Motion)  # Motion(...) without the frozen dataclass's per-field setattr
+        m.__dict__.update(
+            kind=kind,
+            start=start,
+            end=end,
+            line=line.number,
+            center=center,
+            comp=self.comp,
+            entry=self.comp is not None and self.first_after_on,
+            via=via,
         )
         if self.comp is not None:
             self.first_after_on = False
