@@ -205,6 +205,9 @@ def print_gcode_times(t: dict, blocks: int) -> None:
     if not isinstance(t["read_gcode"], str):
         verdict = "met" if t["read_gcode"][0] < 2.0 else "MISSED"
         print(f"read_gcode: {t['moves']:,} moves; target under 2 s: {verdict}")
+        if not isinstance(t["rs274"], str):  # the same run: the machine's speed cancels out
+            ratio = t["read_gcode"][0] / t["rs274"][0]
+            print(f"read_gcode / rs274 on the same file, same run: {ratio:.2f}x")
 
 
 def main() -> None:
