@@ -181,6 +181,37 @@ def scan(src: GcodeText, err, linuxcnc: bool) -> Structure:
     return st
 
 
+_FULL, _STRAIGHT, _ASSIGN = 0, 1, 2
+_STRAIGHT_LETTERS = frozenset("XZFN")
+
+
+def _kind_of(line: SourceLine, linuxcnc: bool) -> int:
+    """How the interpreter runs a line: ``_STRAIGHT`` (G0/G1, X, Z, F, N words, their
+    values maybe computed: `ModalMachine.straight`), ``_ASSIGN`` (parameter assignments
+    only), else ``_FULL`` (`Interpreter.step`, every question asked)."""
+    if (
+        line.oword is not None
+        or line.macro is not None
+        or line.header is not None
+        or line.block_delete
+        or line.percent
+        or line.error is not None
+        or (linuxcnc and any(c.text.strip().upper().startswith("ABORT,") for c in line.comments))
+    ):
+        return _FULL
+    if not line.words:
+        return _ASSIGN if line.assignments and linuxcnc else _FULL
+    if line.assignments:
+        return _FULL
+    for w in line.words:
+        if w.letter == "G":
+            if w.expr is not None or w.code not in ("G0", "G1"):
+                return _FULL
+        elif w.letter not in _STRAIGHT_LETTERS or (w.letter == "N" and w.expr is not None):
+            return _FULL
+    return _STRAIGHT
+
+
 def _open(top) -> str:
     return "" if top is None else f" (o{top[1]} {top[0]} is still open)"
 
@@ -233,6 +264,7 @@ class Interpreter:
         self.special_lines: set[int] = set()  # lines with G65 or M73
         self.computed_g: set[int] = set()  # lines with a G or M code computed
         self.flow_lines: set[int] = set()  # lines that end, call or return (M codes)
+        self.fast = bytes(_kind_of(ln, table.name == "linuxcnc") for ln in src.lines)
         for ln in src.lines:
             for w in ln.words:
                 if w.letter not in "GM":
@@ -304,6 +336,8 @@ class Interpreter:
         lines = self.lines
         n = len(lines)
         limit = self.options.step_limit
+        fast = self.fast
+        machine = self.machine
         while pc < n:
             if depth and len(self.frames) < depth:
                 return pc, False
@@ -323,9 +357,20 @@ class Interpreter:
                     "loop? (raise step_limit if it is not)",
                 )
             self.runs[pc] += 1
-            if line.percent and not line.words and pc != self.first and self.tape:
+            kind = fast[pc]
+            if kind == _STRAIGHT:  # the common blocks, without step's questions
+                block = self.block(line)
+                if not machine.straight(block):
+                    machine.execute(block)
+                nxt = pc + 1
+            elif kind == _ASSIGN:
+                values = [(a, self.value(a.value, line, a.text)) for a in line.assignments]
+                self.assign(values, line)
+                nxt = pc + 1
+            elif line.percent and not line.words and pc != self.first and self.tape:
                 return pc, True  # the tape's end
-            nxt = self.step(pc, line)
+            else:
+                nxt = self.step(pc, line)
             if line.number not in self.states:
                 self.states[line.number] = self.machine.state()
             if nxt is None or (line.percent and pc != self.first):

@@ -404,7 +404,7 @@ class ModalMachine:
                 words = tuple(w for w in block.words if w.letter not in ("A", "C"))
                 block = Block(line, words)
         n_moves = len(self.moves)
-        if corner is None and self._straight(block):
+        if corner is None and self.straight(block):
             return
         self._execute(block)
         if corner is not None:
@@ -412,7 +412,7 @@ class ModalMachine:
                 raise self.err(line, "a G7x corner (A/C) needs a move in its block")
             self.corners[len(self.moves) - 1] = (self.length(corner[0]), self.length(corner[1]))
 
-    def _straight(self, block: Block) -> bool:
+    def straight(self, block: Block) -> bool:
         """The common block, fast: G0/G1, X, Z, F, N words only, each at most once, from
         and to a known position, no corner waiting. True when done; False (nothing
         changed) for every other block, which `_execute` runs."""
