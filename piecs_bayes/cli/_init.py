@@ -81,6 +81,22 @@ def register(subparsers) -> None:
         help="units of the tool table's lengths (default mm)",
     )
     p.add_argument(
+        "--nose-radius",
+        type=T.positive_mm,
+        default=None,
+        help="a program without G41/G42 is the tool's path (CAM output): its nose radius "
+        "(mm); with --tip, the part contour is taken back from the path",
+    )
+    p.add_argument(
+        "--tip",
+        type=int,
+        choices=range(10),
+        default=None,
+        metavar="T",
+        help="the point that path is written for: LinuxCNC tool orientation 1-8 (the "
+        "imaginary tip), 0 or 9 (the nose centre)",
+    )
+    p.add_argument(
         "--ball-radius",
         type=T.positive_mm,
         default=None,
@@ -98,7 +114,7 @@ def register(subparsers) -> None:
 
 
 def cmd_init(args, console) -> int:
-    from ..jobs import init_study
+    from ..jobs import ToolNose, init_study
 
     result = init_study(
         args.program,
@@ -108,8 +124,7 @@ def cmd_init(args, console) -> int:
         x_mode=args.x_mode,
         tolerance_class=args.tolerance_class,
         run=args.run,
-        tool_table=args.tool_table,
-        tool_units=args.tool_units,
+        nose=ToolNose(args.tool_table, args.tool_units, args.nose_radius, args.tip),
         ball_radius_mm=args.ball_radius,
         dialect=args.dialect,
     )
@@ -117,10 +132,14 @@ def cmd_init(args, console) -> int:
     dialect = next((s for s in result.content.program if s.key == "dialect"), None)
     if dialect is not None:
         console.say(f"{args.program}: read as {dialect.value} ({dialect.comment})")
+    source = (
+        f"the part contour under the tool path of lines {c.lead_in}-{c.exit}"
+        if args.nose_radius is not None
+        else f"the finish contour of {c.comp.code} (line {c.comp.line})"
+    )
     console.say(
-        f"{args.program}: the finish contour of {c.comp.code} (line {c.comp.line}), "
-        f"{c.kind}: {len(c.segments)} features (lead-in line {c.lead_in} and exit line "
-        f"{c.exit} are not features)"
+        f"{args.program}: {source}, {c.kind}: {len(c.segments)} features (lead-in line "
+        f"{c.lead_in} and exit line {c.exit} are not features)"
     )
     for f, s in zip(result.content.features, c.segments, strict=True):
         console.say(f"  {f.id:<14} {f.type:<4} line {s.line:<4} {s.source}")

@@ -13,6 +13,8 @@ from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._adjust import BlockChange as BlockChange
 from ._adjust import BlockMap as BlockMap
 from ._adjust import ProgramAdjustment as ProgramAdjustment
+from ._adjust import ToolPath as ToolPath
+from ._adjust import adjust_path_program as adjust_path_program
 from ._adjust import adjust_program as adjust_program
 from ._adjust import map_blocks_to_profile as map_blocks_to_profile
 from ._contour import ContourSegment as ContourSegment
@@ -61,6 +63,8 @@ from ._nosecomp import nose_compensate as nose_compensate
 from ._nosecomp import tip_offset as tip_offset
 from ._options import STEP_LIMIT as STEP_LIMIT
 from ._options import ReadOptions as ReadOptions
+from ._path_contour import path_contour as path_contour
+from ._path_contour import path_targets as path_targets
 from ._pattern_repeat import PatternRepeat as PatternRepeat
 from ._pattern_repeat import expand_pattern_repeat as expand_pattern_repeat
 from ._program import CompEvent as CompEvent

@@ -338,7 +338,6 @@ def adjust_program(
     **Returns:** a :class:`ProgramAdjustment`; write ``.text`` with
     :func:`~piecs_bayes.io.write_text_atomic` (``protect=[input]``).
     """
-    from ._read import parse_gcode
 
     program = read_program(program)
     name = program.name or "<program>"
@@ -363,13 +362,70 @@ def adjust_program(
     _check_shifts(moves, target, bmap, name, max_correction_mm)
     _check_editable(blocks, target, sizes, name)
     texts = _rewrite_blocks(blocks, target, sizes)
+    checks = (tool_table, nose_radius_mm)
+    return _adjustment(program, texts, target, sizes, bmap, moves, checks, header, output_name)
+
+
+@dataclass(frozen=True)
+class ToolPath:
+    """A program without G41/G42 that is the tool's path (CAM output): the nose radius
+    (mm), the point the path is written for (`tip`: LinuxCNC orientation 1-8, the
+    imaginary tip; 0 or 9 the nose centre), the material side (`kind`; None: from the
+    tip) and which run of cutting moves (`run`; None: the only one)."""
+
+    nose_radius: float
+    tip: int
+    kind: str | None = None
+    run: int | None = None
+
+
+def adjust_path_program(
+    program,
+    nominal_profile: Profile,
+    adjusted_profile: Profile,
+    *,
+    tool_path: ToolPath,
+    max_correction_mm: float,
+    header: Sequence[str] = (),
+    output_name: str | None = None,
+) -> ProgramAdjustment:
+    """Rewrite a tool path (no G41/G42) to cut ``adjusted_profile``: each block of the
+    path moves to where the nose's `tool_path.tip` runs for the adjusted contour
+    (`gcode.path_targets`: lines offset by the nose radius, corner arcs about the
+    adjusted vertices, arcs' radii). Only coordinate words change; refused as
+    `adjust_program` refuses (a change above the limit, a block that ran twice or
+    computes its words, a move that would run backwards). Arguments as there."""
+    from ._path_contour import path_targets
+
+    program = read_program(program)
+    name = program.name or "<program>"
+    target, features = path_targets(
+        program, nominal_profile, adjusted_profile, nose_radius=tool_path.nose_radius,
+        tip=tool_path.tip, kind=tool_path.kind, run=tool_path.run,
+    )  # fmt: skip
+    lines = {ln: fid for fid, lns in features.items() for ln in lns}
+    connecting = tuple(sorted(set(target) - set(lines)))
+    bmap = BlockMap(features, dict(sorted(lines.items())), connecting, frozenset())
+    moves = {m.line: m for m in program.moves}
+    _check_shifts(moves, target, bmap, name, max_correction_mm)
+    _check_editable(program, target, {}, name)
+    texts = _rewrite_blocks(program, target, {})
+    return _adjustment(program, texts, target, {}, bmap, moves, (None, None), header, output_name)
+
+
+def _adjustment(program, texts, target, sizes, bmap, moves, checks, header, output_name):
+    """The adjusted program from the new texts of its blocks: read again and checked
+    (`_check`), its header put on, the changes and the diff."""
+    from ._read import parse_gcode
+
+    name = program.name or "<program>"
     new_source = program.source.with_line_texts(texts)
     try:
         raw = parse_gcode(new_source.text, name=program.name, options=program.options)
         new_program = read_program(raw)
     except InputError as exc:
         raise AnalysisError(f"the adjusted program is not valid: {exc}") from None
-    _check(program, new_program, target, set(sizes), name, tool_table, nose_radius_mm)
+    _check(program, new_program, target, set(sizes), name, *checks)
     text, n_header = header_checked(raw, header)
     changes: list[BlockChange] = []
     for ln in sorted(texts):

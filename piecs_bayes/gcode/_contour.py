@@ -158,7 +158,8 @@ def _nose_side(comp: CompSetting) -> str:
     return side
 
 
-def _block_text(program: GcodeProgram, number: int) -> tuple[str, str | None]:
+def block_source(program: GcodeProgram, number: int) -> tuple[str, str | None]:
+    """Line `number`'s text (its N word taken out, spaces made single) and its N word."""
     src = program.source.line(number)
     n = src.word("N")
     text = src.text
@@ -167,7 +168,8 @@ def _block_text(program: GcodeProgram, number: int) -> tuple[str, str | None]:
     return " ".join(text.split()), (None if n is None else f"N{n.text}")
 
 
-def _title(program: GcodeProgram) -> str | None:
+def program_title(program: GcodeProgram) -> str | None:
+    """The program's name: its O line's comment, else its first comment, else its O word."""
     o_word = None
     for src in program.lines:
         o = src.word("O")
@@ -198,7 +200,7 @@ def _segments(program: GcodeProgram, run) -> list[ContourSegment]:
             raise _err(program, "a full-circle arc is not a feature of a turned profile", m.line)
         if m.start == m.end:
             continue  # a zero-length move: no feature
-        text, block = _block_text(program, m.line)
+        text, block = block_source(program, m.line)
         if m.is_arc:
             seg = ContourSegment(
                 "arc", m.start, m.end, m.line, text, block, m.exact_center(), m.ccw
@@ -229,7 +231,8 @@ def finish_contour(program: GcodeProgram, *, run: int | None = None) -> FinishCo
         raise _err(
             program,
             "no nose compensation (G41/G42) in the program: the path is the tool's, not the "
-            "part's; program the finish contour with G41/G42 ... G40"
+            "part's; program the finish contour with G41/G42 ... G40, or give the path's nose "
+            "radius and the point it is written for (init --nose-radius R --tip T)"
             + ("" if first is None else " (this is its first cutting move)"),
             first,
         )
@@ -287,6 +290,6 @@ def finish_contour(program: GcodeProgram, *, run: int | None = None) -> FinishCo
         units=units.pop() if len(units) == 1 else None,
         run=k,
         runs=len(runs),
-        title=_title(program),
+        title=program_title(program),
         program=program.name,
     )

@@ -241,8 +241,19 @@ def read_program_settings(
                 value=lines,
             )
         clean[fid] = tuple(lines)
+    tip = None
+    if "path_tip" in tree:
+        tip = r.integer(tree, "path_tip", "program.", 0, minimum=0)
+        if tip > 9:
+            raise r.error("program.path_tip", f"expected a LinuxCNC orientation 0-9, got {tip}",
+                          value=tip)  # fmt: skip
+        if nose is None:
+            raise r.error(
+                "program.path_tip", "a tool path needs its nose: give program.nose_radius"
+            )
     return ProgramSettings(
         nose_radius=nose,
+        path_tip=tip,
         tool_table=table,
         mapping=MappingProxyType(clean),
         tolerance=r.number(tree, "tolerance", "program.", 0.01 / scale, positive=True) * scale,

@@ -36,7 +36,9 @@ SECTIONS: dict[str, tuple[str, ...]] = {
         "free_transform", "likelihood", "nu", "bayes_steps", "bayes_walkers", "bayes_ensembles",
     ),
     "compensation": ("gain", "max_correction", "apply"),
-    "program": ("nose_radius", "tool_table", "mapping", "tolerance", "stock", "dialect"),
+    "program": (
+        "nose_radius", "tool_table", "mapping", "tolerance", "stock", "dialect", "path_tip",
+    ),
     "plausibility": ("max_distance", "max_outside", "duplicates"),
 }  # fmt: skip
 

@@ -98,6 +98,10 @@ class ProgramSettings:
     tolerance: float = 0.01
     stock: float = 0.5
     dialect: str | None = None
+    path_tip: int | None = None
+    """The program is a tool path without G41/G42 (CAM output) written for this point:
+    LinuxCNC orientation 1-8 (the imaginary tip), 0 or 9 (the nose centre); its nose is
+    ``nose_radius``. None: the program is compensated (G41/G42)."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -51,6 +51,7 @@ from ._fit import load_probe_data as load_probe_data
 from ._fit import pooled_sigma as pooled_sigma
 from ._fit import toolpath_uncertainty as toolpath_uncertainty
 from ._init import InitResult as InitResult
+from ._init import ToolNose as ToolNose
 from ._init import init_study as init_study
 from ._init import study_from_program as study_from_program
 from ._machine import MACHINE_ROUTES as MACHINE_ROUTES

@@ -372,13 +372,23 @@ def adjust_study_program(
 
     **Returns:** a ``ProgramAdjustment`` (``.text``, ``.diff``, ``.changes``).
     """
-    from ..gcode import adjust_program, read_gcode, read_tool_table
+    from ..gcode import ToolPath, adjust_path_program, adjust_program, read_gcode, read_tool_table
 
     if study.program is None:
         raise InputError(
             "the study names no part program (study.part_program)", file=str(study.path)
         )
     ps = study.program_settings
+    if ps.path_tip is not None:  # a tool path without G41/G42: moved as the nose runs
+        return adjust_path_program(
+            read_gcode(study.program, ps.dialect),
+            study.profile,
+            path.profile,
+            tool_path=ToolPath(ps.nose_radius, ps.path_tip, _kind(study.profile)),
+            max_correction_mm=study.compensation.max_correction,
+            header=program_header(study, path.gain, created=created),
+            output_name=output,
+        )
     table = tool_table if tool_table is not None else ps.tool_table
     if table is not None and not hasattr(table, "get"):
         table = read_tool_table(table)
@@ -394,6 +404,17 @@ def adjust_study_program(
         header=program_header(study, path.gain, created=created),
         output_name=output,
     )
+
+
+def _kind(profile) -> str:
+    """``"external"`` or ``"internal"``: where the profile's outward normals point."""
+    from ..geometry import profile_side
+
+    specs = [
+        {"p0": f.p0, "p1": f.p1, **({"center": f.center, "ccw": f.ccw} if f.kind == "arc" else {})}
+        for f in profile.features
+    ]
+    return "external" if profile_side(specs) == profile.features[0].side else "internal"
 
 
 def program_header(study: Study, gain, *, created: str | None = None) -> tuple[str, ...]:

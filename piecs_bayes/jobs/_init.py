@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import AnalysisError, InputError
-from ..gcode import FinishContour, finish_contour, read_gcode, read_tool_table
+from ..gcode import FinishContour, finish_contour, path_contour, read_gcode, read_tool_table
 from ..geometry import iso2768_tolerance
 from ..io import FeatureText, Setting, StudyText, load_study, study_toml, write_file_atomic
 from ._init_names import MM_PER, feature_ids, general_tolerance
@@ -46,7 +46,22 @@ class InitResult:
         return f"InitResult({self.path or '<not written>'}: {self.content.kind}, {ids})"
 
 
-def _nose_radius(contour, tool_table, tool_units, scale) -> Setting:
+def _tip_text(tip: int) -> str:
+    return "the nose centre" if tip in (0, 9) else f"the imaginary tip of orientation {tip}"
+
+
+def _path_settings(nose: ToolNose) -> tuple[Setting, ...]:
+    if nose.tip is None:
+        return ()
+    why = f"the program is a tool path (no G41/G42) of {_tip_text(nose.tip)}"
+    return (Setting("path_tip", nose.tip, why),)
+
+
+def _nose_radius(contour, nose: ToolNose, scale) -> Setting:
+    tool_table, tool_units = nose.table, nose.units
+    if nose.radius is not None:
+        why = "the tool path's nose radius, given to init (--nose-radius)"
+        return Setting("nose_radius", nose.radius / scale, why)
     comp = contour.comp
     key = "nose_radius"
     if comp.diameter_mm is not None:
@@ -132,6 +147,39 @@ def _relative(program: Path, study_path: Path | None) -> str:
         return program.resolve().as_posix()
 
 
+@dataclass(frozen=True)
+class ToolNose:
+    """Where `init` takes the finish tool's nose from.
+
+    - `table`, `units`: a LinuxCNC tool table (lengths in ``"mm"`` or ``"in"``) for the
+      tool of G41/G42.
+    - `radius`, `tip`: for a program **without** G41/G42 (a tool path, as CAM writes
+      it): the nose radius (mm) and the point the path is written for, a LinuxCNC
+      orientation (1-8 the imaginary tip; 0 or 9 the nose centre). The part contour is
+      taken back from the path (`gcode.path_contour`).
+    """
+
+    table: object = None
+    units: str = "mm"
+    radius: float | None = None
+    tip: int | None = None
+
+    def __post_init__(self):
+        if self.units not in ("mm", "in"):
+            raise InputError(f"tool table units: got {self.units!r}, expected 'mm' or 'in'")
+        if (self.radius is None) != (self.tip is None):
+            raise InputError(
+                "a tool path needs both its nose radius and its tip (--nose-radius R --tip T; "
+                "tip 0: the nose centre's path)"
+            )
+        if self.radius is not None and not (
+            isinstance(self.radius, int | float) and math.isfinite(self.radius) and self.radius > 0
+        ):
+            raise InputError(f"nose radius: got {self.radius!r}, expected a number > 0 (mm)")
+        if self.tip is not None and self.tip not in range(10):
+            raise InputError(f"tip: got {self.tip!r}, expected a LinuxCNC orientation 0-9")
+
+
 def study_from_program(
     program,
     *,
@@ -140,8 +188,7 @@ def study_from_program(
     x_mode: str = "diameter",
     tolerance_class: str = "m",
     run: int | None = None,
-    tool_table=None,
-    tool_units: str = "mm",
+    nose: ToolNose | None = None,
     ball_radius_mm: float | None = None,
     dialect: str | None = None,
 ) -> InitResult:
@@ -156,8 +203,10 @@ def study_from_program(
     - `x_mode`: how the study writes X: ``"diameter"`` or ``"radius"``.
     - `tolerance_class`: ISO 2768-1 class ``"f"``, ``"m"``, ``"c"``, ``"v"``
       (``"ISO2768-m"`` is read too).
-    - `run`: which compensation run (1-based) when the program has several.
-    - `tool_table`, `tool_units`: a LinuxCNC tool table for `[program] nose_radius`.
+    - `run`: which compensation run (1-based) when the program has several (of a tool
+      path: which run of cutting moves).
+    - `nose`: a [`ToolNose`][]: the tool table for `[program] nose_radius`, or the nose
+      radius and tip of a program that is a tool path (no G41/G42).
     - `ball_radius_mm`: the probe's ball radius (else a placeholder).
     - `dialect`: the program's dialect (``"linuxcnc"``, ``"fanuc"``, ``"haas"``,
       ``"okuma"``); None: detected. The study records it (`[program] dialect`).
@@ -174,8 +223,12 @@ def study_from_program(
     except ValueError as exc:
         raise InputError(str(exc), value=tolerance_class) from None
     program = Path(program)
+    nose = nose or ToolNose()
     read = read_gcode(program, dialect)
-    contour = finish_contour(read, run=run)
+    if nose.radius is not None:
+        contour = path_contour(read, nose_radius=nose.radius, tip=nose.tip, kind=kind, run=run)
+    else:
+        contour = finish_contour(read, run=run)
     _check_kind(contour, kind)
     units = contour.units or "mm"
     scale = MM_PER[units]
@@ -201,13 +254,22 @@ def study_from_program(
             )
         )
     comp = contour.comp
-    nose = "left" if contour.side == 1 else "right"
+    side = "left" if contour.side == 1 else "right"
     off = f"G40 at line {contour.off}" if contour.off else "the program's end"
     run_text = f" (run {contour.run} of {contour.runs})" if contour.runs > 1 else ""
+    if nose.radius is not None:
+        what = (
+            f"the part contour under the tool path of lines {contour.lead_in}-{contour.exit} "
+            f"(nose radius {nose.radius:g} mm, {_tip_text(nose.tip)})"
+        )
+        from_text = f"the tool path's side of travel ({comp.code} would make it): the nose {side}"
+    else:
+        what = f"its finish contour{run_text}: {comp.code} at line {comp.line} to {off}"
+        from_text = f"from {comp.code} at line {comp.line}: the nose {side} of travel"
     header = (
         f"piecs_bayes study file (docs/formats.md), written by `piecs-bayes init` from "
         f"{program.name}.",
-        f"[profile] is its finish contour{run_text}: {comp.code} at line {comp.line} to {off};",
+        f"[profile] is {what};",
         f"the lead-in (line {contour.lead_in}) and the exit (line {contour.exit}) are not "
         "features.",
         f"Tolerances: ISO 2768-{iso2768_tolerance(1.0, tolerance_class).tol_class} general "
@@ -226,7 +288,7 @@ def study_from_program(
         study_comments={
             "probe_files": "the gauged parts' probe files (relative to this file; globs allowed)",
             "part_program": "relative to this file",
-            "kind": f"from {comp.code} at line {comp.line}: the nose {nose} of travel",
+            "kind": from_text,
             "x_mode": "X of the points below",
         },
         probe=(
@@ -241,7 +303,8 @@ def study_from_program(
             ),
         ),
         program=(
-            _nose_radius(contour, tool_table, tool_units, scale),
+            _nose_radius(contour, nose, scale),
+            *_path_settings(nose),
             Setting("dialect", read.dialect.name, _dialect_comment(read.dialect)),
         ),
     )

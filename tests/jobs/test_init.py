@@ -20,7 +20,7 @@ from piecs_bayes.gcode import (
 )
 from piecs_bayes.geometry import drawn_limits, iso2768_tolerance
 from piecs_bayes.io import load_study, toml_number
-from piecs_bayes.jobs import init_study, study_from_program
+from piecs_bayes.jobs import ToolNose, init_study, study_from_program
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "data" / "demo"
@@ -294,7 +294,7 @@ def test_nose_radius_and_ball_radius(tmp_path):
     assert r.study.program_settings.nose_radius == pytest.approx(0.4)
     # G42 with the tool table (inches): tool 3's radius
     r = init_study(GCODE / "01_od_dia_mm_t3_g42.ngc", tmp_path / "b.toml",
-                   tool_table=GCODE / "tools.tbl", tool_units="in")  # fmt: skip
+                   nose=ToolNose(table=GCODE / "tools.tbl", units="in"))  # fmt: skip
     tools = read_tool_table(GCODE / "tools.tbl", units="in")
     assert r.study.program_settings.nose_radius == pytest.approx(tools[3].radius_mm, abs=1e-12)
     # none known: a commented placeholder

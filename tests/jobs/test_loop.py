@@ -39,17 +39,18 @@ DEMO = ROOT / "data" / "demo"
 GCODE = ROOT / "tests" / "data" / "gcode"
 
 
-def _study_text(program: Path, tmp: Path, *, ball: float) -> str:
-    res = study_from_program(program, study_path=tmp / "study.toml", ball_radius_mm=ball)
+def _study_text(program: Path, tmp: Path, *, ball: float, nose=None) -> str:
+    res = study_from_program(program, study_path=tmp / "study.toml", ball_radius_mm=ball,
+                             nose=nose)  # fmt: skip
     return gauge_ready(res.text, small=ball < 1.0)
 
 
 def _loop(tmp: Path, program: Path, truth_by_order, *, controller="linuxcnc", ball=1.0,
-          points=None, pretravel=None, probe_keys=""):  # fmt: skip
+          points=None, pretravel=None, probe_keys="", nose=None):  # fmt: skip
     """init -> plan -> simulate gauge -> read -> fit: the study, the fit and the truth
     (`pretravel`: the simulated probe's; `probe_keys`: more `[probe]` lines to read
     the probe file with)."""
-    text = _study_text(program, tmp, ball=ball)
+    text = _study_text(program, tmp, ball=ball, nose=nose)
     (tmp / "study.toml").write_text(text)
     study = load_study(tmp / "study.toml")
     truth = dict(zip(study.profile.ids, truth_by_order(study), strict=True))
@@ -242,3 +243,20 @@ def test_the_loop_on_canned_cycle_programs(tmp_path, program, truth, controller)
     study, fit, tr = _loop(tmp_path, program, truth, controller=controller,
                            ball=0.25 if small else 1.0, points=6 if small else None)  # fmt: skip
     _check(study, fit, tr, tmp_path)
+
+
+def test_the_loop_on_a_tool_path_without_compensation(tmp_path):
+    """A CAM-style program: the demo's path of the imaginary tip (orientation 2, nose
+    0.4 mm) written out without G41/G42 (our nose_compensate on data/demo/finish.ngc);
+    `init --nose-radius 0.4 --tip 2` takes the contour back and the adjusted program moves
+    the path, which rs274 runs."""
+    from piecs_bayes.gcode import nose_compensate, parse_gcode
+    from piecs_bayes.jobs import ToolNose
+
+    text = (DEMO / "finish.ngc").read_text().replace("G42 G1", "G42.1 D0.8 L2 G1")
+    cam = tmp_path / "cam.ngc"
+    cam.write_text(nose_compensate(parse_gcode(text, name="finish.ngc")).text)
+    (tmp_path / "loop").mkdir()
+    study, fit, tr = _loop(tmp_path / "loop", cam, _demo_truth, nose=ToolNose(radius=0.4, tip=2))
+    assert study.program_settings.path_tip == 2
+    _check(study, fit, tr, tmp_path / "loop")
