@@ -24,6 +24,7 @@ from ._cycles import ContourMove, FinishCycle, expand_cycle
 from ._modal import Block
 from ._pattern_repeat import PatternRepeat, expand_pattern_repeat
 from ._program import CycleContour, Motion
+from ._thread_cycle import expand_g76
 
 _PASS = set("NFSTMO")
 #: the retract of the one-block G71/G72 (a control setting, not in the program), mm
@@ -229,6 +230,15 @@ def _dry_run(interp, line, first: int, last: int, what: str):
 
 def _linuxcnc(interp, pc, line, code, words) -> int:
     machine = interp.machine
+    if code == "G76":
+        if machine.comp is not None:
+            raise interp.err(line, "Cannot use G76 threading cycle with cutter radius "
+                             "compensation on")  # fmt: skip
+        _check_position(interp, line, code)
+        moves = expand_g76(words, machine.pos, line=line.number, diameter=machine.diameter,
+                           unit_mm=_unit(machine), absolute=machine.absolute)  # fmt: skip
+        _emit(interp, line, moves, code)  # a thread: via "G76", never a contour
+        return pc + 1
     cycle = linuxcnc_cycle(
         code, words, line=line.number, diameter=machine.diameter, unit_mm=_unit(machine)
     )

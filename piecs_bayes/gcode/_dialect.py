@@ -68,7 +68,9 @@ _THREAD = (
     "not a contour of lines and arcs"
 )
 _GROOVE = "is a grooving or peck drilling cycle, not a contour: not read"
-_LINUXCNC_CYCLES = frozenset(("G70", "G71", "G71.1", "G71.2", "G72", "G72.1", "G72.2"))
+_LINUXCNC_CYCLES = frozenset(
+    ("G70", "G71", "G71.1", "G71.2", "G72", "G72.1", "G72.2", "G76")  # G76: threads, read
+)
 _FANUC_CYCLES = frozenset(("G70", "G71", "G72", "G73"))
 _DRILL = "drilling cycles (G81-G89) are not read: they drill, they do not cut a contour"
 
@@ -105,7 +107,7 @@ _LINUXCNC_REFUSED = {
     "G38.3": "probing moves (G38.x) are not read in a part program",
     "G38.4": "probing moves (G38.x) are not read in a part program",
     "G38.5": "probing moves (G38.x) are not read in a part program",
-    **dict.fromkeys(("G32", "G33", "G33.1", "G76"), _THREAD),
+    **dict.fromkeys(("G32", "G33", "G33.1"), _THREAD),
     **dict.fromkeys(("G73", "G74", "G81", "G82", "G83", "G84", "G85", "G86"), _DRILL),
     **dict.fromkeys(("G87", "G88", "G89"), _DRILL),
 }

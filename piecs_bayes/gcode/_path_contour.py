@@ -13,6 +13,7 @@ adjusted program: where each block of the path ends for an adjusted profile. The
 material side is ``kind``, else the tip's (below the nose centre: an outside diameter).
 The rules: docs/formats.md, "Study from the part program".
 """
+
 from __future__ import annotations
 
 import math

@@ -490,3 +490,20 @@ def test_non_contour_cycles_are_named():
     assert non_contour_cycle("G71") is None and non_contour_cycle("G1", "haas") is None
     with pytest.raises(InputError, match="unknown dialect"):
         non_contour_cycle("G76", "okuma")
+
+
+def test_a_g76_thread_is_read_but_never_a_contour():
+    """LinuxCNC's G76 is read as rs274 makes it (tests/gcode/test_linuxcnc_corpus.py);
+    its moves carry via="G76" and the finish contour is the G42 run after it."""
+    from piecs_bayes.gcode import compensation_runs, finish_contour
+
+    text = (
+        "G18 G21 G7 G90\nG0 X20 Z2\nG76 P1.5 Z-20 I-1 J0.2 K1 R1.5 Q29.5 H2\n"
+        "G0 X10 Z2\nG42.1 D0.8 L2 G1 X8 Z0\nG1 X24\nG1 Z-30\nG1 X30\nG40 G0 X40\nM2\n"
+    )
+    program = parse_gcode(text, name="thread.ngc")
+    thread = [m for m in program.moves if m.via == "G76"]
+    assert len(thread) > 10 and {m.kind for m in thread} == {"rapid", "feed"}
+    assert thread[-1].end == pytest.approx((10.0, -20.0))  # the drive line's end: X20 Z-20
+    assert len(compensation_runs(program)) == 1
+    assert [s.line for s in finish_contour(program).segments] == [6, 7]

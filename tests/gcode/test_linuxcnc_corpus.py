@@ -34,6 +34,9 @@ RUN: dict[str, tuple[str, list[float]] | None] = {
     "lathe_g70_71_demo.ngc": None,  # G71.1, G71.2 and G70 (two passes) under G42.1
     "lathe_g7x_face_boring.ngc": None,  # G72 and G70 in a subroutine, a repeat in the contour
     "lathe_g7x_quadrants.ngc": None,  # G70/G71/G72 in the four quadrants
+    "lathe-g76.ngc": None,  # G76 threads (read as moves, never a contour)
+    # x, surface speed, tool, pitch, z, internal, external
+    "macros/lathe/threading.ngc": ("G18 G21 G7\nG0 X30 Z2\n", [20, 100, 1, 1.5, -20, 0, 1]),
     "lathecomp.ngc": None,
     # finish diameter, surface speed, depth of cut, feed/rev, length, radius, angle, tool
     "macros/lathe/boring.ngc": ("G18 G21 G7\nG0 X10 Z2\n", [20, 100, 1, 0.1, -20, 2, 0, 1]),
@@ -77,11 +80,13 @@ MORE: dict[str, tuple[str, str, list[float]]] = {
                             [20, 100, 0.5, 0, -5, 1, 0, 2, 0, 0, 1]),
     "facing-no-pass": ("macros/lathe/facing.ngc", "G18 G21 G7\nG0 X40 Z-1.9\n",
                        [30, 100, 0.5, 0.1, -2, 0, 1, 1500]),
+    "threading-internal": ("macros/lathe/threading.ngc", "G18 G21 G7\nG0 X10 Z2\n",
+                           [20, 100, 1, 1.5, -20, 1, 0]),
+    "threading-inch": ("macros/lathe/threading.ngc", "G18 G20 G7\nG0 X1.2 Z0.1\n",
+                       [0.75, 300, 1, 0.05, -0.8, 0, 1]),
 }  # fmt: skip
 #: programs not read yet, with the reason and what the refusal says
 NOT_READ: dict[str, tuple[str, str]] = {
-    "lathe-g76.ngc": ("G76 threading cycle", "G76: threading"),
-    "macros/lathe/threading.ngc": ("G76 threading cycle", "G76: threading"),
     "ngcgui_lib/lathe/g76base.ngc": (
         "G76 threading, after o<loadtool> (a subroutine in another file)",
         "subroutines in other files are not read",
@@ -219,13 +224,16 @@ def test_what_is_not_read_yet_is_refused_by_name(rel):
 #: what `init` makes of each program read: its study's number of features (with `--run`
 #: where the program has several compensated runs), or why it has no finish contour
 NO_COMP = "no nose compensation (G41/G42)"
+FEATURES_G76 = 2  # the two arcs of its rounded end
 INIT: dict[str, list[tuple[int | None, int]] | str] = {
     "lathe_g70_71_demo.ngc": [(None, 18)],  # the pawn: G70's contour under G42.1
     "lathecomp.ngc": [(1, 4), (2, 5)],  # two runs: G42, then G41
+    "lathe-g76.ngc": [(8, FEATURES_G76)],  # its end rounded under G41 in a loop of 8 passes
     "ngcgui_lib/lathe/taper-od.ngc": [(None, 3)],
     **dict.fromkeys(
         (
             "lathe_g7x_face_boring.ngc", "lathe_g7x_quadrants.ngc", "lathe_pawn.ngc",
+            "macros/lathe/threading.ngc",
             "macros/lathe/boring.ngc", "macros/lathe/chamfer.ngc", "macros/lathe/facing.ngc",
             "macros/lathe/radius.ngc", "macros/lathe/turning.ngc", "ngcgui_lib/lathe/id.ngc",
             "ngcgui_lib/lathe/od.ngc", _STD,
@@ -283,3 +291,22 @@ def test_gcode_check_rs274_agrees_on_every_program(rel, tmp_path, capsys, monkey
     rc = main(argv)
     out = capsys.readouterr().out
     assert rc == 0 and "rs274 agrees" in out, out[-800:]
+
+
+#: the programs rs274 refuses too (what each says), run as `test_what_is_not_read_yet...`
+BOTH_REFUSE = {
+    "ngcgui_lib/lathe/g76base.ngc": "seeking o-word: o<loadtool>",
+    "ngcgui_lib/lathe/g76diam.ngc": "seeking o-word: o<g76base>",
+}
+
+
+@pytest.mark.skipif(rs274_path() is None, reason="LinuxCNC's rs274 is not installed")
+@pytest.mark.parametrize("rel", sorted(BOTH_REFUSE))
+def test_rs274_refuses_them_too(rel, tmp_path, monkeypatch):
+    """The subroutines in other files: rs274 alone (no subroutine path) refuses them too."""
+    if not (NC / rel).is_file():
+        pytest.skip(f"{rel} is not installed")
+    monkeypatch.setenv("HOME", str(tmp_path))
+    text = _wrapper(rel, "G18 G20 G7\nG0 X1 Z0.1\n", NOT_READ_ARGS[rel])
+    res = run_rs274(text, tool_table=TOOLS)
+    assert res.error is not None and BOTH_REFUSE[rel] in res.error
