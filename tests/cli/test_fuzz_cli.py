@@ -239,7 +239,7 @@ INIT_CLASSES = [
     ("init_no_comp", "N50 G42 G1", "N50 G1", [], 7, "no nose compensation (G41/G42) in the program: the path is the tool's, not the part's"),
     ("init_rapid", "N90 G1 X30.000", "N90 G0 X30.000", [], 11, "a rapid (G0) inside the compensated contour"),
     ("init_thread", "N80 G1 X30.000 Z-45.000", "N80 G33 X30.000 Z-45.000 K1.5", [], 10, "G33: threading is not understood"),
-    ("init_thread_cycle", "N30 G96", "N25 G76 P1.5 Z-20 I-1 J0.1 K1\nN30 G96", [], 5, "G76: threading"),
+    ("init_thread_cycle", "N70 G1 X24.000 Z-30.000", "N65 G76 P1.5 Z-20 I-1 J0.1 K1\nN70 G1 X24.000 Z-30.000", [], 9, "Cannot use G76 threading cycle with cutter radius compensation on"),
     ("init_non_planar", "N70 G1 X24.000 Z-30.000", "N70 G1 X24.000 Y1 Z-30.000", [], 9, "XZ plane"),
     ("init_two_runs", "N160 M30", "G42 G1 X10 Z2\nG1 Z-5\nG1 X20\nG40 G0 X60\nN160 M30", [], None, "2 compensated runs (run 1: lines 7-15 (G42); run 2: lines 18-20 (G42))"),
     ("init_no_feature", "N10", "N10", ["--run", "1"], 7, None),
