@@ -274,6 +274,8 @@ def _agree(console, what, ref, ours, tol, skip=frozenset()) -> int:
             console.say(f"rs274 disagrees: an arc where {what} has a straight move or back")
             return 1
         dev = max(dev, *(abs(u - v) for u, v in zip(a.end, b.end, strict=True)))
+        y = getattr(b, "y", None)  # ours: (start, end) off the XZ plane, else None
+        dev = max(dev, abs(a.y - (y if isinstance(y, float) else y[1] if y else 0.0)))
         if a.center is not None and b.center is not None:
             dev = max(dev, math.dist(a.center, b.center))
     # rs274 prints 4 decimals in the program's units: 1e-4 in is 2.54e-3 mm

@@ -74,9 +74,15 @@ _LINUXCNC_CYCLES = frozenset(
 _FANUC_CYCLES = frozenset(("G70", "G71", "G72", "G73"))
 _DRILL = "drilling cycles (G81-G89) are not read: they drill, they do not cut a contour"
 
+#: LinuxCNC's drilling cycles the reader runs (in the XY plane, G17: along Z, as a
+#: lathe drills on its axis) and its probing moves
+LINUXCNC_DRILLING = frozenset(("G73", "G81", "G82", "G83", "G85", "G89"))
+LINUXCNC_PROBING = frozenset(("G38.2", "G38.3", "G38.4", "G38.5"))
+
 _LINUXCNC_GROUPS = {
     **dict.fromkeys(("G0", "G1", "G2", "G3", "G80"), "motion"),
-    "G18": "plane",
+    **dict.fromkeys(LINUXCNC_DRILLING | LINUXCNC_PROBING, "motion"),
+    **dict.fromkeys(("G17", "G18", "G19"), "plane"),
     **dict.fromkeys(("G20", "G21"), "units"),
     **dict.fromkeys(("G7", "G8"), "diameter"),
     **dict.fromkeys(("G40", "G41", "G42", "G41.1", "G42.1"), "comp"),
@@ -94,8 +100,6 @@ _LINUXCNC_GROUPS = {
     ),
 }
 _LINUXCNC_REFUSED = {
-    "G17": _LATHE_PLANE,
-    "G19": _LATHE_PLANE,
     "G17.1": _LATHE_PLANE,
     "G18.1": _LATHE_PLANE,
     "G19.1": _LATHE_PLANE,
@@ -103,13 +107,14 @@ _LINUXCNC_REFUSED = {
     "G5": "splines (G5) are not read",
     "G5.1": "splines (G5.1) are not read",
     "G5.2": "NURBS (G5.2) are not read",
-    "G38.2": "probing moves (G38.x) are not read in a part program",
-    "G38.3": "probing moves (G38.x) are not read in a part program",
-    "G38.4": "probing moves (G38.x) are not read in a part program",
-    "G38.5": "probing moves (G38.x) are not read in a part program",
     **dict.fromkeys(("G32", "G33", "G33.1"), _THREAD),
-    **dict.fromkeys(("G73", "G74", "G81", "G82", "G83", "G84", "G85", "G86"), _DRILL),
-    **dict.fromkeys(("G87", "G88", "G89"), _DRILL),
+    **dict.fromkeys(
+        ("G74", "G84"), "tapping cycles (G74/G84) are synchronised with the spindle: not read"
+    ),
+    **dict.fromkeys(
+        ("G86", "G87", "G88"),
+        "boring cycles that stop or orient the spindle (G86-G88) are not read",
+    ),
 }
 _LINUXCNC_M = frozenset(
     "M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M19 M30 M48 M49 M50 M51 M52 M53 M60 M61 M62 M63 M64 "

@@ -242,6 +242,7 @@ class Interpreter:
         self.options = options
         self.machine = machine
         self.params = Parameters(table.name, table.local_params, self._predefined)
+        machine.probe_sink = self._probe_result
         self.runs = [0] * len(self.lines)
         self.computed: set[int] = set()
         self.states: dict[int, object] = {}
@@ -289,6 +290,11 @@ class Interpreter:
         return InputError(
             f"{msg}: {line.text.strip()!r}", file=self.src.name or "<program>", line=line.number
         )
+
+    def _probe_result(self, values: tuple[float, ...]) -> None:
+        """A probing move ended: #5061-#5069 get its end, #5070 its result (LinuxCNC)."""
+        for k, v in enumerate(values):
+            self.params.numbered[5061 + k] = v
 
     def _predefined(self, ref):
         if ref == "_call_level":

@@ -9,8 +9,10 @@ offsets and coordinate shifts (G10, G54-G59, G92, Fanuc's G50), reference return
 (G28/G30) and machine-coordinate moves (G53), nose compensation, tools, and records what
 it does not apply (M codes, G10 tool data, spindle clamps) as notes. Anything not
 understood is an :class:`~piecs_bayes.errors.InputError` naming the file, the line, the
-word and why. G2 is clockwise and G3 counter-clockwise in the drawing frame (z right, x
-up), as LinuxCNC's ``ARC_FEED`` shows.
+word and why. LinuxCNC's Y axis (straight moves in G17, G18 or G19), its drilling cycles
+in G17 (`drill_moves`) and its probing moves (G38.x) are read as the moves it makes,
+each carrying its Y (``Motion.y``): never a contour. G2 is clockwise and G3
+counter-clockwise in the drawing frame (z right, x up), as LinuxCNC's ``ARC_FEED`` shows.
 
 The words of each dialect: docs/models/part_programs.md, "The modal machine".
 """
@@ -23,7 +25,8 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from ..errors import InputError
-from ._dialect import DialectTable
+from ._dialect import LINUXCNC_DRILLING, LINUXCNC_PROBING, DialectTable
+from ._drill_cycle import DrillCall, drill_moves
 from ._lexer import SourceLine, code_of
 from ._options import ReadOptions
 from ._params import ParameterError
@@ -37,8 +40,11 @@ _new = object.__new__
 _RADIUS_TOL_MM = 0.00005 * MM_PER_INCH
 _SPIRAL_ABS_MM = {"mm": 2 * 0.01 * math.sqrt(2), "in": 2 * 0.001 * math.sqrt(2) * MM_PER_INCH}
 _SPIRAL_REL = 0.001
+# after a probing move LinuxCNC's standalone interpreter puts the tool 0.01 in back
+# towards where the move began (saicanon.cc, STRAIGHT_PROBE)
+_PROBE_BACKOFF_MM = 0.254
 _KIND = {"G0": "rapid", "G1": "feed", "G2": "cw", "G3": "ccw"}
-_LINUXCNC_LETTERS = set("GMNOXZIKRFSTDLPQHE")
+_LINUXCNC_LETTERS = set("GMNOXYZIKRFSTDLPQHE")
 _FANUC_LETTERS = set("GMNOXZUWIKRFSTPQLHE") | {",C", ",R"}
 _M_GROUPS_LINUXCNC = {
     **dict.fromkeys(("M0", "M1", "M2", "M30", "M60"), "stop"),
@@ -135,6 +141,11 @@ class ModalMachine:
         self.feed_per_rev = table.feed_per_rev
         self.motion: str | None = None
         self.pos = tuple(options.start)
+        self.y = 0.0  # LinuxCNC's Y axis (mm): off the XZ plane only in drilling and probing
+        self.plane = "G18"
+        self.probe_sink = None  # the reader's: the probe's results into #5061-#5070
+        self.drill: dict[str, float] = {}  # a drilling cycle's sticky R, Z, Q, P, L
+        self.drill_initial: float | None = None  # its initial level (LinuxCNC's cycle_il)
         zero = options.machine_zero
         # machine coordinates of each work system's zero (NaN: not known)
         self.base = (-zero[0], -zero[1]) if zero is not None else (math.nan, math.nan)
@@ -153,7 +164,7 @@ class ModalMachine:
         self.coolant: set[str] = set()
         self.length_on = False
         self.css = False
-        self.return_mode = "G98"
+        self.return_mode = "G99"  # LinuxCNC starts retracting canned cycles to R
         self.comp: CompSetting | None = None
         self.first_after_on = False
         self.just_off = False
@@ -287,7 +298,7 @@ class ModalMachine:
         if name.startswith(("_ini[", "_hal[")):
             raise ParameterError(f"#<{name}> (the machine's INI or HAL) has no value here")
         x, z = self._program_pos(scale)
-        motion = {None: 800.0, "G0": 0.0, "G1": 10.0, "G2": 20.0, "G3": 30.0}[self.motion]
+        motion = 800.0 if self.motion is None else float(round(float(self.motion[1:]) * 10))
         comp = 400.0
         if self.comp is not None:
             comp = {"G41": 410.0, "G41.1": 411.0, "G42": 420.0, "G42.1": 421.0}[self.comp.code]
@@ -296,8 +307,10 @@ class ModalMachine:
             "_z": z,
             "_abs_x": self.pos[0] * scale,
             "_abs_z": self.pos[1] * scale,
-            **dict.fromkeys(("_y", "_a", "_b", "_c", "_u", "_v", "_w"), 0.0),
-            **dict.fromkeys(("_abs_y", "_abs_a", "_abs_b", "_abs_c"), 0.0),
+            "_y": self.y * scale,
+            "_abs_y": self.y * scale,
+            **dict.fromkeys(("_a", "_b", "_c", "_u", "_v", "_w"), 0.0),
+            **dict.fromkeys(("_abs_a", "_abs_b", "_abs_c"), 0.0),
             "_imperial": float(self.units == "in"),
             "_metric": float(self.units == "mm"),
             "_absolute": float(self.absolute),
@@ -307,7 +320,7 @@ class ModalMachine:
             "_ijk_absolute_mode": float(self.arc_absolute),
             "_ijk_incremental_mode": float(not self.arc_absolute),
             "_motion_mode": motion,
-            "_plane": 180.0,
+            "_plane": float(self.plane[1:]) * 10,
             "_ccomp": comp,
             "_feed": self.feed,
             "_rpm": self.speed,
@@ -364,9 +377,12 @@ class ModalMachine:
         if 5420 <= n <= 5428:
             k = n - 5420
             x, z = self._program_pos(scale)
-            return (x, z)[axis[k]] if k in axis else 0.0
+            return {0: x, 1: self.y * scale, 2: z}.get(k, 0.0)
         if 5061 <= n <= 5070 or n == 5399:
-            raise ParameterError(f"#{n} (a probe or input result) has no value when only reading")
+            raise ParameterError(
+                f"#{n} (a probe or input result) has no value when only reading"
+                + (" (no probing move before it)" if n != 5399 else "")
+            )
         return None
 
     def _fanuc_numbered(self, n: int, scale: float) -> float | None:
@@ -464,9 +480,17 @@ class ModalMachine:
             raise self.err(line, "a ,C/,R corner cannot end where compensation changes")
         self._settings(line, gcodes, mcodes, w)
         nonmodal = gcodes.get("nonmodal")
+        before = self.motion
         if gcodes.get("motion"):
             self.motion = None if gcodes["motion"] == "G80" else gcodes["motion"]
-        axes = [k for k in ("X", "Z", "U", "W") if k in w]  # those a setting took are gone
+        axes = [k for k in ("X", "Y", "Z", "U", "W") if k in w]  # a setting took its own
+        if self.motion in LINUXCNC_DRILLING and nonmodal not in ("G28", "G30", "G53"):
+            if axes or "motion" in gcodes:
+                self._drill(line, before, w)
+            self._stops(line, mcodes)
+            return
+        if (axes and nonmodal not in ("G28", "G30")) or "motion" in gcodes:
+            self.drill_initial = None  # another motion: a new run of cycles starts afresh
         if nonmodal in ("G28", "G30"):
             self._reference(line, nonmodal, w, axes)
             axes = []
@@ -579,6 +603,11 @@ class ModalMachine:
             self.units = "in" if gcodes["units"] == "G20" else "mm"
         if "diameter" in gcodes:
             self.diameter = gcodes["diameter"] == "G7"
+        if "plane" in gcodes:
+            plane = gcodes["plane"]
+            if plane != "G18" and self.comp is not None and gcodes.get("comp") != "G40":
+                raise self.err(line, f"{plane} with nose compensation on (G40 first)")
+            self.plane = plane
         comp = gcodes.get("comp")
         if comp == "G40":
             self.just_off = self.comp is not None
@@ -621,7 +650,10 @@ class ModalMachine:
         comp = gcodes.get("comp")
         m = set(mcodes.values())
         linuxcnc = self.table.name == "linuxcnc"
+        motion = gcodes.get("motion") or self.motion
+        drilling = motion in LINUXCNC_DRILLING
         p_ok = nonmodal in ("G4", "G10") or gcodes.get("path") == "G64"
+        p_ok = p_ok or motion in ("G82", "G89")
         p_ok = p_ok or bool(
             m & {"M98", "M99", "M97", "M62", "M63", "M64", "M65", "M66", "M67", "M68"}
         )
@@ -629,6 +661,7 @@ class ModalMachine:
             what = "G4, G10 or G64" if linuxcnc else "G4, G10, M98, M99 or M97"
             raise self.err(line, f"a P word is only understood with {what}")
         q_ok = gcodes.get("path") == "G64" or nonmodal == "G10" or "M61" in m or "M66" in m
+        q_ok = q_ok or motion in ("G73", "G83")
         if "Q" in w and not q_ok:
             raise self.err(
                 line, "a Q word is only understood with G64" + ("" if linuxcnc else " or G10")
@@ -637,7 +670,9 @@ class ModalMachine:
             raise self.err(line, "an H word is only understood with G43")
         if "E" in w and not m & {"M67", "M68"}:
             raise self.err(line, "an E word (thread lead, analog output) is not understood here")
-        if "L" in w and not (comp in ("G41.1", "G42.1") or nonmodal == "G10" or m & {"M98", "M66"}):
+        if "L" in w and not (
+            comp in ("G41.1", "G42.1") or nonmodal == "G10" or m & {"M98", "M66"} or drilling
+        ):
             raise self.err(line, "an L word is only understood with G41.1/G42.1, G10 or M98")
         if "D" in w and not (
             comp in ("G41", "G42", "G41.1", "G42.1") or gcodes.get("spindle_mode") == "G96"
@@ -693,6 +728,9 @@ class ModalMachine:
     def _comp_on(self, line, code, w) -> None:
         if self.comp is not None:
             raise self.err(line, f"{code} while compensation is already on (G40 first)")
+        if self.plane != "G18":
+            raise self.err(line, f"{code} in the {_PLANES[self.plane]} plane ({self.plane}): "
+                           "nose compensation is read in the XZ plane (G18) only")  # fmt: skip
         side = "left" if code.startswith("G41") else "right"
         if code.endswith(".1"):
             if "D" not in w:
@@ -719,6 +757,8 @@ class ModalMachine:
 
     def _g10(self, line, w) -> None:
         n = line.number
+        if "Y" in w:
+            raise self.err(line, "G10 Y: offsets of the Y axis are not read")
         lw = w.get("L")
         level = int(lw.value) if lw is not None else None
         if level in (2, 20):
@@ -777,6 +817,8 @@ class ModalMachine:
 
     def _set_coordinates(self, line, code, w) -> None:
         """G92 / Fanuc's G50 X Z: the current position gets the coordinates given."""
+        if "Y" in w:
+            raise self.err(line, f"{code} Y: offsets of the Y axis are not read")
         if code == "G50" and self.table.name == "okuma":
             raise self.err(line, "Okuma's G50 X/Z (zero shift) is not read")
         if "U" in w or "W" in w:
@@ -816,15 +858,18 @@ class ModalMachine:
         if not axes and self.table.name != "linuxcnc":
             raise self.err(line, f"{code} needs the axes to return (U0 W0, or X/Z)")
         mid = self._axis_targets(w, self.pos)
-        self._emit(line, "rapid", mid, None, via=code)  # LinuxCNC: also without axis words
+        y_mid = self._y_target(line, w)
+        # LinuxCNC: also without axis words
+        self._emit(line, "rapid", mid, None, via=code, y_end=y_mid)
         xs = not axes or any(k in w for k in ("X", "U"))
         zs = not axes or any(k in w for k in ("Z", "W"))
         ref = self.to_program(self.homes[code])
         end = (ref[0] if xs else mid[0], ref[1] if zs else mid[1])
+        y_end = 0.0 if not axes or "Y" in w else y_mid  # Y's reference: 0 (no Y offsets)
         if not any(math.isnan(v) for v in end):
-            self._emit(line, "rapid", end, None, via=code)
+            self._emit(line, "rapid", end, None, via=code, y_end=y_end)
         else:
-            self.pos = end
+            self.pos, self.y = end, y_end
             self.note(
                 line.number,
                 code,
@@ -834,8 +879,21 @@ class ModalMachine:
 
     # -- moves -----------------------------------------------------------------------------
 
+    def _y_target(self, line, w) -> float:
+        """The Y the block moves to (mm); Y words are refused under nose compensation."""
+        if "Y" not in w:
+            return self.y
+        if self.comp is not None:
+            raise self.err(line, "a Y move with nose compensation on: a profile is in the XZ plane")
+        v = self.length(w["Y"].value)
+        return v if self.absolute else self.y + v
+
     def _move(self, line, w, *, machine: bool = False) -> None:
+        if self.motion in LINUXCNC_PROBING and not machine:
+            self._probe(line, w)
+            return
         x0, z0 = self.pos
+        y1 = self._y_target(line, w)
         # Fanuc G53 is a one-shot rapid whatever the motion mode (none in force included)
         kind = "rapid" if machine and self.fanuc else _KIND[self.motion]
         if machine:
@@ -845,6 +903,8 @@ class ModalMachine:
                 raise self.err(line, "G53 in incremental mode (G91) is not allowed")
             if self.fanuc:
                 kind = "rapid"  # Fanuc G53: a rapid in machine coordinates
+            if "Y" in w:
+                raise self.err(line, "G53 Y: the Y axis's machine coordinates are not read")
             wx, wz = self.work()
             x = self.x_length(w["X"].value) - wx if "X" in w else x0
             z = self.length(w["Z"].value) - wz if "Z" in w else z0
@@ -861,6 +921,11 @@ class ModalMachine:
                 )
         center = None
         if kind in ("cw", "ccw"):
+            if self.plane != "G18":
+                plane = f"{_PLANES[self.plane]} plane ({self.plane})"
+                raise self.err(line, f"an arc in the {plane} is not read: a profile is in XZ")
+            if "Y" in w:
+                raise self.err(line, "a helix (an arc with a Y word) is not read")
             if self.just_off:
                 raise self.err(line, "the move just after G40 must be straight")
             if any(math.isnan(v) for v in (x0, z0)):
@@ -879,11 +944,102 @@ class ModalMachine:
             return
         if any(math.isnan(v) for v in (x0, z0)) or any(math.isnan(v) for v in end):
             self.note(line.number, "G0", "a rapid from or to a position that is not known")
-            self.pos = end
+            self.pos, self.y = end, y1
             return
-        self._emit(line, kind, end, center)
+        self._emit(line, kind, end, center, y_end=y1)
 
-    def _motion(self, line, kind, start, end, center, via="") -> Motion:
+    def _probe(self, line, w) -> None:
+        """G38.2-G38.5 (LinuxCNC): a straight feed towards the end point. Where the probe
+        touches is not known when only reading: the move is read to its end, where
+        LinuxCNC's standalone interpreter puts the contact (#5061-#5063 = that point)."""
+        code = self.motion
+        if self.comp is not None:
+            raise self.err(line, f"{code}: probing with nose compensation on")
+        if self.feed == 0.0:
+            raise self.err(line, f"{code}: probing with a zero feed rate")
+        if self.feed_per_rev:
+            raise self.err(line, f"{code}: probing in feed per revolution (G95)")
+        end = self._axis_targets(w, self.pos)
+        y1 = self._y_target(line, w)
+        if any(math.isnan(v) for v in (*self.pos, *end)):
+            raise self.err(line, f"{code}: probing from or to a position that is not known")
+        if code in ("G38.2", "G38.4") and end == self.pos and y1 == self.y:
+            raise self.err(line, f"{code}: the start point is the probe's end point")
+        self.note(line.number, code, "probing move: read to its end point, taken as the "
+                  "contact (#5061-#5063; #5070 = 0), and backed off 0.254 mm towards its start, as "
+                  "LinuxCNC's standalone interpreter does")  # fmt: skip
+        start = (self.pos[0], self.y, self.pos[1])
+        self._emit(line, "feed", end, None, via=code, y_end=y1)
+        probed = (end[0], y1, end[1])
+        if self.probe_sink is not None:  # in program units; "not tripped", as rs274 says
+            scale = 1.0 / MM_PER_INCH if self.units == "in" else 1.0
+            self.probe_sink((*(v * scale for v in probed), *(0.0,) * 7))
+        d = [a - b for a, b in zip(start, probed, strict=True)]
+        dist = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        if dist != 0.0:  # the next move starts there (no move is made)
+            x, y, z = (p + _PROBE_BACKOFF_MM * v / dist for p, v in zip(probed, d, strict=True))
+            self.pos, self.y = (x, z), y
+
+    def _drill(self, line, before: str | None, w) -> None:
+        """A LinuxCNC drilling cycle block (G73, G81-G83, G85, G89) in the XY plane:
+        `drill_moves`, with the sticky R, Z, Q and P of the cycle already in force."""
+        code = self.motion
+        if self.plane != "G17":
+            plane = f"{_PLANES[self.plane]} plane ({self.plane})"
+            raise self.err(
+                line, f"{code} in the {plane} drills across the axis: read in G17 (along Z)"
+            )
+        if self.comp is not None:
+            raise self.err(line, f"{code}: canned cycles with nose compensation on")
+        if self.feed == 0.0:
+            raise self.err(line, f"{code}: a drilling cycle with a zero feed rate")
+        if any(math.isnan(v) for v in self.pos):
+            raise self.err(line, f"{code}: a drilling cycle from a position that is not known")
+        same = before == code
+        sticky = self.drill if same else {}
+        needed = {"R": "the clearance plane R", "Z": "the depth Z"}
+        if code in ("G73", "G83"):
+            needed["Q"] = "the peck Q"
+        if code in ("G82", "G89"):
+            needed["P"] = "the dwell P"
+        values = {}
+        for letter, what in needed.items():
+            if letter in w:
+                values[letter] = w[letter].value
+            elif letter in sticky:
+                values[letter] = sticky[letter]
+            else:
+                raise self.err(
+                    line, f"{code} needs {what}" + ("" if same else " on its first block")
+                )
+        lw = w.get("L")
+        repeats = 1 if lw is None else lw.value
+        if repeats != int(repeats) or repeats < 1:
+            raise self.err(line, f"{code}: L (repeats) must be a whole number >= 1")
+        unit = MM_PER_INCH if self.units == "in" else 1.0
+        halve = 2.0 if self.diameter else 1.0
+        here = (self.pos[0] / unit, self.y / unit, self.pos[1] / unit)
+        if self.absolute:
+            tx = w["X"].value / halve if "X" in w else here[0]
+            ty = w["Y"].value if "Y" in w else here[1]
+        else:
+            tx = w["X"].value / halve if "X" in w else 0.0
+            ty = w["Y"].value if "Y" in w else 0.0
+        call = DrillCall(code, (tx, ty), values["R"], values["Z"], self.absolute,
+                         q=values.get("Q", 0.0), repeats=int(repeats),
+                         retract_r=self.return_mode == "G99")  # fmt: skip
+        if self.drill_initial is None:
+            self.drill_initial = here[2]
+        try:
+            moves, _ = drill_moves(call, here, self.drill_initial, metric=self.units == "mm")
+        except ValueError as exc:
+            raise self.err(line, f"{code}: {exc}") from None
+        for mv in moves:
+            x, y, z = mv.end
+            self._emit(line, mv.kind, (x * unit, z * unit), None, via=code, y_end=y * unit)
+        self.drill = {**sticky, **values}
+
+    def _motion(self, line, kind, start, end, center, via="", y_end=None) -> Motion:
         m = _new(Motion)  # Motion(...) without the frozen dataclass's per-field setattr
         m.__dict__.update(
             kind=kind,
@@ -895,20 +1051,24 @@ class ModalMachine:
             entry=self.comp is not None and self.first_after_on,
             via=via,
         )
+        y1 = self.y if y_end is None else y_end
+        if self.y or y1:
+            m.__dict__["y"] = (self.y, y1)
         if self.comp is not None:
             self.first_after_on = False
         self.just_off = False
         return m
 
-    def _emit(self, line, kind, end, center, via="") -> None:
+    def _emit(self, line, kind, end, center, via="", y_end=None) -> None:
+        y1 = self.y if y_end is None else y_end
         if any(math.isnan(v) for v in (*self.pos, *end)):
             self.note(line.number, via or kind, "a rapid from or to a position that is not known")
-            self.pos = end
+            self.pos, self.y = end, y1
             return
-        m = self._motion(line, kind, self.pos, end, center, via)
+        m = self._motion(line, kind, self.pos, end, center, via, y1)
         self.moves.append(m)
         self.events.append(m)
-        self.pos = end
+        self.pos, self.y = end, y1
 
     def _make_corner(self, line, kind, end) -> None:
         """The waiting ,C/,R move ends short of its corner; the corner is inserted."""
@@ -989,6 +1149,9 @@ class ModalMachine:
         code = mcodes.get("stop")
         if code in ("M0", "M1", "M60"):
             self.note(line.number, code, "program stop: reading goes on")
+
+
+_PLANES = {"G17": "XY", "G18": "XZ", "G19": "YZ"}
 
 
 def _unit(p, q):

@@ -105,8 +105,8 @@ class Parameters:
         raise ParameterError(f"parameter #{n} has no value when a program is only read")
 
     def _user(self, n: int) -> bool:
-        if self.linuxcnc:
-            return n <= 5000
+        if self.linuxcnc:  # the others of LinuxCNC's 5602 hold 0 unless a file sets them
+            return n <= 5601 and not 5061 <= n <= 5070 and n != 5399
         return 100 <= n <= 999 or n == 0
 
     # -- writing ------------------------------------------------------------------------
@@ -123,8 +123,8 @@ class Parameters:
             return
         if 1 <= ref <= self.local:
             self.frames[-1][0][ref] = value
-        elif self._user(ref) and ref != 0:
-            self.numbered[ref] = value
+        elif (self._user(ref) or self.linuxcnc and 0 < ref <= 5601) and ref != 0:
+            self.numbered[ref] = value  # LinuxCNC: any of its 5602, system ones included
         else:
             raise ParameterError(f"parameter #{ref} cannot be set by a program read here")
 

@@ -29,6 +29,7 @@ from ._contour import (
     contour_view,
     program_title,
 )
+from ._dialect import LINUXCNC_DRILLING, LINUXCNC_PROBING
 from ._nosecomp import tip_offset
 from ._program import CompSetting
 
@@ -46,12 +47,17 @@ class PathRole:
     index: int
 
 
+#: moves that are never a part's contour: reference returns, machine moves, threads,
+#: drilling and probing (and any move off the XZ plane, ``Motion.y``)
+_NOT_CUTTING = frozenset(("G28", "G30", "G53", "G76")) | LINUXCNC_DRILLING | LINUXCNC_PROBING
+
+
 def path_runs(program) -> list[list]:
     """The runs of cutting moves (feeds and arcs between rapids) of `program`."""
     runs: list[list] = []
     current: list = []
     for m in contour_view(program).moves:
-        if m.kind == "rapid" or m.via in ("G28", "G30", "G53") or m.via in CYCLE_CODES:
+        if m.kind == "rapid" or m.via in _NOT_CUTTING or m.via in CYCLE_CODES or m.y:
             if current:
                 runs.append(current)
             current = []

@@ -83,7 +83,11 @@ class Motion:
     via: str = ""
     """What made the move besides a motion word: ``"G28"`` / ``"G30"`` (reference return:
     the intermediate point and the reference), ``"G53"`` (machine coordinates), ``",C"``
-    / ``",R"`` (a chamfer or corner the control inserts)."""
+    / ``",R"`` (a chamfer or corner the control inserts), ``"G81"`` .. ``"G89"`` / ``"G73"``
+    (a LinuxCNC drilling cycle), ``"G38.2"`` .. ``"G38.5"`` (a probing move)."""
+    y: tuple[float, float] | None = None
+    """Start and end Y in mm where the move is off the XZ plane (LinuxCNC's Y axis: a
+    drilling or probing macro); None on the plane. Such a move is never a contour's."""
 
     @property
     def is_arc(self) -> bool:

@@ -27,12 +27,14 @@ _CANON = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_0-9]+)\((.*)\)\s*$")
 
 @dataclass(frozen=True)
 class CanonMove:
-    """A canonical move: ``kind`` is ``"rapid"``, ``"feed"`` or ``"arc"`` (mm, radius X)."""
+    """A canonical move: ``kind`` is ``"rapid"``, ``"feed"``, ``"probe"`` or ``"arc"`` (mm,
+    radius X); ``y`` the end's Y (mm)."""
 
     kind: str
     end: tuple[float, float]
     center: tuple[float, float] | None = None
     rotation: int = 0
+    y: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -65,18 +67,17 @@ def parse_canon(text: str) -> tuple[tuple[CanonMove, ...], list[str]]:
         if name == "USE_LENGTH_UNITS":
             scale = 25.4 if "INCHES" in args else 1.0
             continue
-        if name not in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED"):
+        if name not in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "STRAIGHT_PROBE", "ARC_FEED"):
             continue
         vals = [float(v) for v in args.split(",")]
         if name == "ARC_FEED":
-            z, x, cz, cx, rot = vals[:5]
-            moves.append(
-                CanonMove("arc", (x * scale, z * scale), (cx * scale, cz * scale), int(rot))
-            )
+            z, x, cz, cx, rot, y = vals[:6]  # in the XZ plane: Y is the axis's end point
+            end, center = (x * scale, z * scale), (cx * scale, cz * scale)
+            moves.append(CanonMove("arc", end, center, int(rot), y * scale))
         else:
-            x, _, z = vals[:3]
-            kind = "rapid" if name == "STRAIGHT_TRAVERSE" else "feed"
-            moves.append(CanonMove(kind, (x * scale, z * scale)))
+            x, y, z = vals[:3]
+            kind = {"STRAIGHT_TRAVERSE": "rapid", "STRAIGHT_FEED": "feed"}.get(name, "probe")
+            moves.append(CanonMove(kind, (x * scale, z * scale), y=y * scale))
     return tuple(moves), other
 
 

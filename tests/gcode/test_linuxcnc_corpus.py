@@ -62,6 +62,12 @@ RUN: dict[str, tuple[str, list[float]] | None] = {
     ),
     "ngcgui_lib/lathe/taper-od.ngc": ("<std>G0 X1.2 Z0.2\n", [3000, 100, 2, 0, -2, 1, 10, 6, 8]),
     _STD: None,  # a preamble: no move (M2 added, which rs274 wants at the end)
+    # diameter, depth, surface speed, feed/rev, tool, peck, retract: G83 on the axis in G17
+    "macros/lathe/drill.ngc": ("G18 G21 G7\nG0 X0 Z2\n", [10, -20, 100, 0.1, 1, 3, 1]),
+    # x, y, z: a mill macro (G17, a Y move)
+    "macros/lathe/go_to_position.ngc": ("G18 G20 G7\nG0 X1 Z0.1\n", [1, 2, 3]),
+    # max radius, fast feed, slow feed, -, probe diameter: G38.2/G38.3 along X, Y and Z
+    "macros/lathe/probe-hole.ngc": ("G18 G20 G7\nG0 X1 Z0.1\n", [0.5, 10, 1, 0, 0.1]),
 }
 #: more runs of the macros: the other branches (inch input, the chamfer's and radius's
 #: front-inside and back-outside forms)
@@ -84,6 +90,12 @@ MORE: dict[str, tuple[str, str, list[float]]] = {
                            [20, 100, 1, 1.5, -20, 1, 0]),
     "threading-inch": ("macros/lathe/threading.ngc", "G18 G20 G7\nG0 X1.2 Z0.1\n",
                        [0.75, 300, 1, 0.05, -0.8, 0, 1]),
+    "drill-inch": ("macros/lathe/drill.ngc", "G18 G20 G7\nG0 X0 Z0.1\n",
+                   [0.4, -0.8, 300, 0.004, 1, 0.1, 0.05]),
+    "drill-below-r": ("macros/lathe/drill.ngc", "G18 G21 G7\nG0 X0 Z-1\n",
+                      [10, -7, 100, 0.1, 1, 2, 1]),
+    "go-to-position-metric": ("macros/lathe/go_to_position.ngc", "G18 G21 G8\nG0 X1 Z2\n",
+                              [-5, 7.5, 12]),
 }  # fmt: skip
 #: programs not read yet, with the reason and what the refusal says
 NOT_READ: dict[str, tuple[str, str]] = {
@@ -95,9 +107,6 @@ NOT_READ: dict[str, tuple[str, str]] = {
         "G76 threading (through o<g76base>, a subroutine in another file)",
         "subroutines in other files are not read",
     ),
-    "macros/lathe/drill.ngc": ("G83 peck drilling in the XY plane (G17): not a contour", "G17"),
-    "macros/lathe/go_to_position.ngc": ("a mill macro: G17, Y moves", "G17"),
-    "macros/lathe/probe-hole.ngc": ("probing moves (G38.x) along X and Y", "G38.3"),
 }
 #: the documented defaults of the ngcgui G76 subroutines (their early checks exit on others)
 NOT_READ_ARGS = {
@@ -171,8 +180,11 @@ def _same_moves(text: str, name: str) -> int:
         if k in skip:
             continue
         assert (a.kind in ("cw", "ccw")) == (b.kind == "arc"), where
-        assert a.kind == b.kind or b.kind == "arc", where
+        probe = b.kind == "probe" and a.kind == "feed" and a.via.startswith("G38")
+        assert a.kind == b.kind or b.kind == "arc" or probe, where
         assert max(abs(u - v) for u, v in zip(a.end, b.end, strict=True)) / unit <= 1e-4 + 1e-9
+        ay = getattr(a, "y", None)  # a PathMove (compensated) is in the XZ plane
+        assert abs((ay[1] if ay else 0.0) - b.y) / unit <= 1e-4 + 1e-9, where
         if b.kind == "arc":
             assert math.dist(a.center, b.center) / unit <= 1.5e-4, where
             assert b.rotation == (1 if a.kind == "ccw" else -1), where
@@ -233,7 +245,8 @@ INIT: dict[str, list[tuple[int | None, int]] | str] = {
     **dict.fromkeys(
         (
             "lathe_g7x_face_boring.ngc", "lathe_g7x_quadrants.ngc", "lathe_pawn.ngc",
-            "macros/lathe/threading.ngc",
+            "macros/lathe/threading.ngc", "macros/lathe/drill.ngc",
+            "macros/lathe/go_to_position.ngc", "macros/lathe/probe-hole.ngc",
             "macros/lathe/boring.ngc", "macros/lathe/chamfer.ngc", "macros/lathe/facing.ngc",
             "macros/lathe/radius.ngc", "macros/lathe/turning.ngc", "ngcgui_lib/lathe/id.ngc",
             "ngcgui_lib/lathe/od.ngc", _STD,
