@@ -285,10 +285,14 @@ def detect_dialect(source) -> Dialect:
             weights[what] = weight
 
     safe_start = None
+    seen: set[str] = set()  # a line's evidence is its text's: a repeated line adds nothing
     for line in source.lines:
         words = line.words
         if not (words or line.header or line.oword or line.macro or line.assignments):
             continue
+        if line.text in seen:
+            continue
+        seen.add(line.text)
         if line.header is not None:
             add("okuma", 100, f"{line.header} header")
         if line.oword is not None:

@@ -342,16 +342,19 @@ class Interpreter:
         lines = self.lines
         n = len(lines)
         limit = self.options.step_limit
+        skip_deleted = self.options.block_delete
         fast = self.fast
         machine = self.machine
+        straight, execute, block_of = machine.straight, machine.execute, self.block
+        runs, states, frames = self.runs, self.states, self.frames
         while pc < n:
-            if depth and len(self.frames) < depth:
+            if depth and len(frames) < depth:
                 return pc, False
             line = lines[pc]
             self.current = line
             if line.error is not None:
                 self.lex_error(line)
-            if line.block_delete and self.options.block_delete:
+            if line.block_delete and skip_deleted:
                 pc += 1
                 continue
             self.steps += 1
@@ -362,12 +365,12 @@ class Interpreter:
                     f"the program ran {limit:,} blocks without ending{where}: an endless "
                     "loop? (raise step_limit if it is not)",
                 )
-            self.runs[pc] += 1
+            runs[pc] += 1
             kind = fast[pc]
             if kind == _STRAIGHT:  # the common blocks, without step's questions
-                block = self.block(line)
-                if not machine.straight(block):
-                    machine.execute(block)
+                block = block_of(line)
+                if not straight(block):
+                    execute(block)
                 nxt = pc + 1
             elif kind == _ASSIGN:
                 values = [(a, self.value(a.value, line, a.text)) for a in line.assignments]
@@ -377,8 +380,8 @@ class Interpreter:
                 return pc, True  # the tape's end
             else:
                 nxt = self.step(pc, line)
-            if line.number not in self.states:
-                self.states[line.number] = self.machine.state()
+            if line.number not in states:
+                states[line.number] = machine.state()
             if nxt is None or (line.percent and pc != self.first):
                 return pc, True
             if nxt <= pc and nxt != pc + 1:
