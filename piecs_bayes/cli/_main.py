@@ -96,6 +96,21 @@ def _os_error(exc: OSError) -> str:
 _BROKEN_PIPE = 128 + signal.SIGPIPE
 
 
+def _stopped(code: int, argv) -> int:
+    """The exit code of a run stopped by a signal. The program itself (``argv`` None)
+    leaves at once: its temporaries are gone (the exception unwound through them), but
+    XLA's own threads may still be inside a computation the signal cut short, and the
+    interpreter's teardown then crashes under them (SIGSEGV instead of 130/143)."""
+    if argv is not None:
+        return code
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
 def main(argv=None) -> int:
     """Run one command; every failure is one line on stderr and an exit code:
     0 ok, 1 the analysis failed, 2 bad input or usage (argparse), 130 interrupted
@@ -129,10 +144,10 @@ def main(argv=None) -> int:
         return 2 if bad_input else 1
     except KeyboardInterrupt:
         _say_error("interrupted", "stopped by Ctrl-C; no partial output was left")
-        return 130
+        return _stopped(130, argv)
     except Terminated:
         _say_error("terminated", "stopped by SIGTERM; no partial output was left")
-        return 143
+        return _stopped(143, argv)
     except BrokenPipeError:
         # the reader of our output went away (`| head -1`): stop quietly as Unix tools do,
         # with 128 + SIGPIPE and no message; standard output goes to /dev/null so that

@@ -1,18 +1,15 @@
 """The modal state of a lathe control: blocks in, moves in the XZ half-plane out.
 
 [`ModalMachine`][] executes one [`Block`][] at a time (a source line whose values are
-known: the interpreter evaluated its parameters) under a dialect's table, in the order
-LinuxCNC documents for the words of a block, and collects every move as a
-:class:`~piecs_bayes.gcode.Motion` in **millimetres, radius X**, with its source line.
-It keeps units, diameter or radius X, absolute or incremental axes, arc centres, work
-offsets and coordinate shifts (G10, G54-G59, G92, Fanuc's G50), reference returns
-(G28/G30) and machine-coordinate moves (G53), nose compensation, tools, and records what
-it does not apply (M codes, G10 tool data, spindle clamps) as notes. Anything not
-understood is an :class:`~piecs_bayes.errors.InputError` naming the file, the line, the
-word and why. LinuxCNC's Y axis (straight moves in G17, G18 or G19), its drilling cycles
-in G17 (`drill_moves`) and its probing moves (G38.x) are read as the moves it makes,
-each carrying its Y (``Motion.y``): never a contour. G2 is clockwise and G3
-counter-clockwise in the drawing frame (z right, x up), as LinuxCNC's ``ARC_FEED`` shows.
+known) under a dialect's table, in LinuxCNC's order of execution, and collects every
+move as a :class:`~piecs_bayes.gcode.Motion` in **millimetres, radius X**, with its
+source line. It keeps units, diameter or radius X, absolute or incremental axes, arc
+centres, work offsets and shifts (G10, G54-G59, G92, Fanuc's G50), G28/G30, G53, nose
+compensation and tools, and notes what it does not apply (M codes, G10 tool data,
+spindle clamps). Anything not understood is an InputError naming file, line, word and
+why. LinuxCNC's Y moves, drilling cycles (`drill_moves`) and probing moves (G38.x) are
+read as the moves it makes, with their Y (``Motion.y``): never a contour. G2 is
+clockwise in the drawing frame (z right, x up), as LinuxCNC's ``ARC_FEED`` shows.
 
 The words of each dialect: docs/models/part_programs.md, "The modal machine".
 """

@@ -228,7 +228,7 @@ REFUSALS = [
     ("thread_g33_1", _HEAD + _LEAD + "G33.1 Z-10 K1.5\n" + _TAIL, 5, "G33.1: threading"),
     ("thread_g76", _HEAD + _LEAD + "G76 P1.5 Z-20 I-1 J0.1 K1\n" + "G1 Z-20\n" + _TAIL, 5, "Cannot use G76 threading cycle with cutter radius compensation on"),
     ("thread_g32", _HEAD + _LEAD + "G32 Z-10 F1.5\n" + _TAIL, 5, "G32: threading"),
-    ("non_planar", _HEAD + _LEAD + "G1 Y2 Z-10\n" + _TAIL, 5, "word Y2 is not understood (a lathe program lives in the XZ plane)"),
+    ("non_planar", _HEAD + _LEAD + "G1 Y2 Z-10\n" + _TAIL, 5, "a Y move with nose compensation on: a profile is in the XZ plane"),
     ("no_feature", _HEAD + _LEAD + "G1 X40 Z-20\nG40 G0 X50\nM30\n", 4, "has no feature between its lead-in (line 4) and its exit (line 5)"),
     ("only_zero_length", _HEAD + _LEAD + "G1 X20 Z1\n" + _TAIL, 4, "only zero-length moves"),
     # (no M30 between the runs: the control stops there, and so does the reader)
