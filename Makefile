@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 export MPLBACKEND := Agg
 export JAX_PLATFORMS := cpu
 
-.PHONY: demo test lint lint-imports clean venv conformance
+.PHONY: demo test test-slow test-all lint lint-imports clean venv conformance
 
 venv: $(STAMP)
 
@@ -26,8 +26,19 @@ demo: $(STAMP)
 # on this 2-core kind of machine). Work stealing: a worker that runs dry takes tests
 # queued on the other, so a long test late in one queue leaves no core idle at the
 # end (300 s of pytest against 322-336 s with the default `load`)
+# Two tiers. `make test`: every behaviour, the statistical checks at sizes whose power
+# each test states (a 300-part coverage check, its window 3 binomial sds). `make
+# test-all` adds the full-power tier: the tests marked slow (the 1,000-part coverage
+# checks, the notebooks executed end to end), then the golden and regeneration tests
+# again under XLA compiling for other instruction sets (.ci/isa-reruns).
 test: $(STAMP)
-	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 --dist worksteal
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 --dist worksteal -m "not slow"
+
+test-slow: $(STAMP)
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 --dist worksteal -m slow
+	bash .ci/isa-reruns
+
+test-all: test test-slow
 
 # Peer agreement with LinuxCNC's rs274 (Debian package linuxcnc-uspace): installs
 # it when missing, then runs the tests marked rs274 (they fail here if it is absent).

@@ -1,12 +1,17 @@
 """Every notebook in notebooks/ runs top to bottom on the shipped data, in time.
 
-Executed with nbclient in the `python3` kernel of this environment (checked:
+`make test` checks that each one is stored without outputs, that its code parses and
+that every name it imports from piecs_bayes exists (what a change of the API breaks);
+the slow tier (`make test-all`) executes each end to end. Executed with nbclient in the `python3` kernel of this environment (checked:
 the kernel's interpreter is the one running the tests), headless
 (`MPLBACKEND=Agg`, `JAX_PLATFORMS=cpu`). Notebooks are stored without outputs.
 """
 
 from __future__ import annotations
 
+import ast
+import importlib
+import importlib.util
 import os
 import sys
 import time
@@ -55,6 +60,7 @@ def test_stored_without_outputs(path):
     assert nb.metadata["kernelspec"]["name"] == "python3"
 
 
+@pytest.mark.slow
 def test_kernel_is_this_environment(tmp_path):
     nb = nbformat.v4.new_notebook()
     nb.cells.append(nbformat.v4.new_code_cell("import sys; print(sys.prefix)"))
@@ -63,6 +69,30 @@ def test_kernel_is_this_environment(tmp_path):
     assert Path(out).resolve() == Path(sys.prefix).resolve()
 
 
+@pytest.mark.parametrize("path", ALL, ids=[p.stem for p in ALL])
+def test_code_parses_and_its_imports_exist(path):
+    nb = nbformat.read(path, as_version=4)
+    imported = 0
+    for i, cell in enumerate(c for c in nb.cells if c.cell_type == "code"):
+        lines = [ln for ln in cell.source.splitlines() if not ln.lstrip().startswith(("%", "!"))]
+        tree = ast.parse("\n".join(lines), f"{path.name}, code cell {i + 1}")
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("piecs_bayes"):
+                module = importlib.import_module(node.module)
+                for alias in node.names:
+                    assert hasattr(module, alias.name) or importlib.util.find_spec(
+                        f"{node.module}.{alias.name}"
+                    ), f"{path.name}, code cell {i + 1}: {node.module} has no {alias.name}"
+                    imported += 1
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.name.startswith("piecs_bayes"):
+                        importlib.import_module(alias.name)
+                        imported += 1
+    assert imported >= 1, f"{path.name} imports nothing from piecs_bayes"
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("path", ALL, ids=[p.stem for p in ALL])
 def test_notebook_runs_in_time(path):
     nb = nbformat.read(path, as_version=4)
