@@ -133,9 +133,16 @@ def _run(sampler, moves, log_prob, args, x0, names, cov0):
         )[0]
 
 
-@pytest.mark.parametrize("target", TARGETS)
+def _tiered(sampler, target):
+    """emcee (four times the lockstep samplers' time) is in `make test` on the linear
+    target, the hardest (strongly correlated coefficients, 4 parameters); on the other
+    two in the slow tier. The lockstep samplers, the default, on every target."""
+    marks = [pytest.mark.slow] if sampler == "emcee" and target != "linear" else []
+    return pytest.param(sampler, target, marks=marks, id=f"{sampler}-{target}")
+
+
 @pytest.mark.parametrize("moves", MOVES)
-@pytest.mark.parametrize("sampler", SAMPLERS)
+@pytest.mark.parametrize(("sampler", "target"), [_tiered(s, t) for s in SAMPLERS for t in TARGETS])
 def test_posterior_equals_the_closed_form(sampler, moves, target, reference_dir):
     log_prob, args, x0, names, mean, cov = _target(target, str(reference_dir))
     post = _run(sampler, moves, log_prob, args, x0, names, cov)
