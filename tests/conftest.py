@@ -41,14 +41,20 @@ _TRACE, _LOWER, _BUILD = (
 )
 _RUN: Counter = Counter()
 _TEST: Counter = Counter()
+_BY_FUNCTION: Counter = Counter()  # seconds building each function's executables
+_BY_FUNCTION_N: Counter = Counter()
 
 
-def _on_duration(event, duration_secs, **_):
+def _on_duration(event, duration_secs, fun_name="?", **_):
     key = {_TRACE: "trace_s", _LOWER: "lower_s", _BUILD: "build_s"}.get(event)
     if key is not None:
         _TEST[key] += duration_secs
         if event == _BUILD:
             _TEST["executables"] += 1
+            _BY_FUNCTION[fun_name] += duration_secs
+            _BY_FUNCTION_N[fun_name] += 1
+            if duration_secs > 0.3:
+                _TEST[f"fn:{fun_name}"] += 1
 
 
 def _on_event(event, **_):
@@ -65,7 +71,7 @@ def pytest_runtest_protocol(item, nextitem):
     _TEST.clear()
     start = time.perf_counter()
     yield
-    _RUN.update(_TEST)
+    _RUN.update({k: v for k, v in _TEST.items() if not k.startswith("fn:")})
     log = os.environ.get("PIECS_BAYES_COMPILE_LOG")
     if log:
         row = {"test": item.nodeid, "wall_s": round(time.perf_counter() - start, 3)}
@@ -75,6 +81,11 @@ def pytest_runtest_protocol(item, nextitem):
 
 
 def pytest_sessionfinish(session):
+    log = os.environ.get("PIECS_BAYES_COMPILE_LOG")
+    if log and _BY_FUNCTION:
+        top = {k: [_BY_FUNCTION_N[k], round(v, 3)] for k, v in _BY_FUNCTION.most_common()}
+        with open(log, "a") as f:
+            f.write(json.dumps({"build_by_function": top}) + "\n")
     workeroutput = getattr(session.config, "workeroutput", None)
     if workeroutput is not None:  # an xdist worker: hand the sums to the controller
         workeroutput["compilations"] = dict(_RUN)

@@ -2,7 +2,7 @@
 HTML file and as a PDF, drawn at once.
 
 [`report_files`][] returns `(html, pdf)` from one list of sections (`_sections`), every
-figure drawn once for both renderers (`report_html` and `report_pdf` give one
+figure drawn once, as one PNG for both renderers (`report_html` and `report_pdf` give one
 each). It is a pure writer: it reads the bundle and never re-fits. A section whose step
 was not run or could not be done is kept, with the reason; every length is stated as
 drawn, deviations in µm.
@@ -13,7 +13,7 @@ The sections and their rendering: docs/models/report.md.
 from __future__ import annotations
 
 from ..figures import RC
-from ._html import html_report_text, png_bytes
+from ._html import html_report_text
 from ._pdf import pdf_pages, pdf_report_bytes
 from ._sections import report_sections
 
@@ -25,10 +25,6 @@ def report_files(res) -> tuple[str, bytes]:
     png: dict[str, bytes] = {}
     with rc_context(RC):
         sections = report_sections(res)
-
-        def keep(name, fig):
-            png[name] = png_bytes(fig)
-
-        pdf = pdf_report_bytes(pdf_pages(res, sections, on_figure=keep), res)
+        pdf = pdf_report_bytes(pdf_pages(res, sections, on_figure=png.__setitem__), res)
         text = html_report_text(res, sections, png)
     return text, pdf

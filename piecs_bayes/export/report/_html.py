@@ -95,9 +95,10 @@ def _table_html(b: Table) -> str:
     )
 
 
-def png_bytes(fig) -> bytes:
+def png_bytes(fig, dpi: float | None = None) -> bytes:
+    """`fig` as PNG, at `dpi` (the style's `savefig.dpi` when None)."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png")
+    fig.savefig(buf, format="png", **({} if dpi is None else {"dpi": dpi}))
     return buf.getvalue()
 
 

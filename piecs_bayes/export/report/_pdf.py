@@ -8,7 +8,8 @@ import io
 import itertools
 
 from ..figures import RC
-from ._pdf_blocks import FigurePiece, keep_height, place_block, place_heading
+from ._html import png_bytes
+from ._pdf_blocks import FIGURE_DPI, FigurePiece, keep_height, place_block, place_heading
 from ._pdf_flow import BODY, TITLE, Flow, render_pages, text_op
 from ._sections import report_sections
 from .model import Fig, PageBreak
@@ -21,11 +22,14 @@ def _place_section(flow: Flow, head: str, blocks, on_figure, numbers) -> None:
     for i, b in enumerate(blocks):
         if isinstance(b, Fig):
             fig = b.make()
+            png = png_bytes(fig, FIGURE_DPI)  # drawn once, for the PDF and the HTML
             if on_figure is not None:
-                on_figure(b.name, fig)
+                on_figure(b.name, png)
             n = next(numbers)
             caption = f"Figure {n} (section {head}). {b.caption}"
-            figures[i] = FigurePiece(fig, caption, full=b.full, shrink=b.shrink)
+            figures[i] = FigurePiece(
+                png, fig.get_size_inches(), caption, full=b.full, shrink=b.shrink
+            )
     text = [i for i, b in enumerate(blocks) if i not in figures and not isinstance(b, PageBreak)]
     keep = keep_height(blocks[text[0]]) if text else 1.0
     if figures and min(figures) < (text[0] if text else len(blocks)):
@@ -62,7 +66,7 @@ def _layout(res, sections, on_figure=None) -> Flow:
 
 
 def pdf_pages(res, sections, on_figure=None):
-    """Yield the PDF's pages as Figures (and call `on_figure(name, fig)` for figures)."""
+    """Yield the PDF's pages as Figures (and call `on_figure(name, png)` for figures)."""
     flow = _layout(res, sections, on_figure)
     footer = f"piecs_bayes report · {res.study.name} · part {res.part or '–'} · {res.created}"
     yield from render_pages(flow.pages, footer)

@@ -250,25 +250,27 @@ def _place_tables(flow: Flow, tables: list[Table]) -> None:
 # --------------------------------------------------------------------------- figures
 
 
-def _image(fig, dpi: float):
+#: the resolution of the report's figures, in the PDF and in the HTML alike (one
+#: PNG each: drawing a figure costs more than the rest of its page)
+FIGURE_DPI = 150.0
+
+
+def _pixels(png: bytes):
     import numpy as np
     from PIL import Image
 
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    buf.seek(0)
-    return np.asarray(Image.open(buf).convert("RGB"))
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
 
 
 class FigurePiece:
-    """A figure as an image (at `dpi`) scaled to the page width, at most `share` of the
-    page's height (all of it when `full`), with its caption below. On a page with less
-    room it shrinks down to `shrink` of that size (and at least 3 inches)."""
+    """A figure (its PNG and its size in inches) scaled to the page width, at most
+    `share` of the page's height (all of it when `full`), with its caption below. On a
+    page with less room it shrinks down to `shrink` of that size (and at least 3 inches)."""
 
-    def __init__(self, fig, caption: str, *, full=False, shrink=0.75, dpi: float = 150.0):
+    def __init__(self, png: bytes, size_inches, caption: str, *, full=False, shrink=0.75):
         self.shrink = shrink
-        self.img = _image(fig, dpi)
-        self.fw, self.fh = fig.get_size_inches()
+        self.img = _pixels(png)
+        self.fw, self.fh = size_inches
         self.cap = wrap(caption, WIDTH, SMALL) if caption else []
         self.cap_h = len(self.cap) * _line_h(SMALL) + 0.06
         page = END - TOP - self.cap_h - 0.05
