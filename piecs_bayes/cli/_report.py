@@ -17,7 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import _types as T
-from ._common import add_apply, add_common, finish, out_dir, subcommand, write
+from ._common import add_apply, add_common, finish, out_dir, prefetch_imports, subcommand, write
 from ._outputs import print_fit, write_bayes, write_fit, write_unc
 
 EXAMPLE_DEMO = "piecs-bayes demo data/demo/study.toml --out reports/demo"
@@ -89,6 +89,8 @@ def run_job_from_args(args, console):
     """Run the main job with the CLI's options and progress on the console."""
     from ..errors import InputError
     from ..jobs import JobOptions, run_job
+
+    prefetch_imports()  # the report's and posterior.nc's modules, while the job runs
 
     if args.steps is not None and args.steps < 100:
         raise InputError(f"--steps: got {args.steps}, expected at least 100", value=args.steps)
