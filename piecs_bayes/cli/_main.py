@@ -96,30 +96,53 @@ def _os_error(exc: OSError) -> str:
 _BROKEN_PIPE = 128 + signal.SIGPIPE
 
 
-def _leave(code: int) -> None:
+_INTERRUPTED = ("interrupted", "stopped by Ctrl-C; no partial output was left")
+_TERMINATED = ("terminated", "stopped by SIGTERM; no partial output was left")
+
+
+def _leave(code: int, message: tuple[str, str] | None = None) -> None:
     """End the program now with `code`, its output flushed: every file it wrote is
-    closed and renamed into place by then. The interpreter's teardown is skipped: it
-    frees JAX's and matplotlib's objects one by one (1 s after a demo, 0.2 s after a
-    `fit`), and after a signal XLA's threads may still be inside a computation the
-    signal cut short, which crashed the teardown (SIGSEGV instead of 130/143)."""
+    closed and renamed into place by then. A Ctrl-C or SIGTERM that comes while it
+    leaves is the user's word all the same: 130 or 143 and its one line. The
+    interpreter's teardown is skipped: it frees JAX's and matplotlib's objects one by
+    one (1 s after a demo, 0.2 s after a `fit`), and after a signal XLA's threads may
+    still be inside a computation the signal cut short, which crashed the teardown
+    (SIGSEGV instead of 130/143); its atexit callbacks could be interrupted too."""
+    late: list[int] = []
+    for sig, late_code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
+        try:
+            signal.signal(sig, lambda s, f, c=late_code: late.append(c))
+        except ValueError:  # not the main thread
+            pass
+    if message is not None:
+        _say_error(*message)
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
         except (OSError, ValueError):
             pass
+    if late and code not in (130, 143):
+        code = late[0]
+        _say_error(*(_INTERRUPTED if code == 130 else _TERMINATED))
     os._exit(code)
 
 
 def main(argv=None) -> int:
     """Run one command and return its exit code; the program itself (``argv`` None,
-    the console script and ``python -m piecs_bayes.cli``) ends there (`_leave`)."""
-    code = _run(argv)
-    if argv is None:
-        _leave(code)
-    return code
+    the console script and ``python -m piecs_bayes.cli``) ends there (`_leave`), its
+    signal handlers kept to the last instruction."""
+    if argv is not None:
+        return _run(argv, restore=True)
+    try:
+        _leave(_run(None, restore=False))
+    except KeyboardInterrupt:  # outside the command's own handling: as it returned
+        _leave(130, _INTERRUPTED)
+    except Terminated:
+        _leave(143, _TERMINATED)
+    return 0  # not reached: _leave ends the program
 
 
-def _run(argv) -> int:
+def _run(argv, *, restore: bool) -> int:
     """Run one command; every failure is one line on stderr and an exit code:
     0 ok, 1 the analysis failed, 2 bad input or usage (argparse), 130 interrupted
     (Ctrl-C), 143 terminated (SIGTERM), 141 (no message) when the reader of standard
@@ -151,10 +174,10 @@ def _run(argv) -> int:
         _say_error("error" if bad_input else "analysis failed", str(exc))
         return 2 if bad_input else 1
     except KeyboardInterrupt:
-        _say_error("interrupted", "stopped by Ctrl-C; no partial output was left")
+        _say_error(*_INTERRUPTED)
         return 130
     except Terminated:
-        _say_error("terminated", "stopped by SIGTERM; no partial output was left")
+        _say_error(*_TERMINATED)
         return 143
     except BrokenPipeError:
         # the reader of our output went away (`| head -1`): stop quietly as Unix tools do,
@@ -185,7 +208,7 @@ def _run(argv) -> int:
         )
         return 1
     finally:
-        if previous is not None:
+        if previous is not None and restore:
             signal.signal(signal.SIGTERM, previous)
             if signal.getsignal(signal.SIGINT) is _on_sigint:
                 signal.signal(signal.SIGINT, signal.default_int_handler)

@@ -8,6 +8,7 @@ message, exit status 141 (128 + SIGPIPE)."""
 from __future__ import annotations
 
 import gc
+import json
 import os
 import signal
 import subprocess
@@ -95,3 +96,65 @@ def test_a_reader_that_goes_away_stops_every_command_quietly_with_141(tmp_path):
     assert first.startswith("[") and "read Study(" in first, first
     assert proc.returncode == 141 and err == "", (proc.returncode, err)
     assert not [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]
+
+
+#: the CLI as a child that takes Ctrl-C as a terminal gives it (a shell that started the
+#: test run in the background passes SIGINT on as ignored). With HOLD set, the program's
+#: last step (`_leave`, as it flushes standard output before it exits) announces itself
+#: and waits there: the moment of the exit clean-up, made certain.
+_CHILD = """
+import os, runpy, signal, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)
+if os.environ.get("HOLD"):
+    class Held:
+        def __init__(self, stream):
+            self.stream = stream
+        def __getattr__(self, name):
+            return getattr(self.stream, name)
+        def flush(self):
+            self.stream.flush()
+            if sys._getframe(1).f_code.co_name == "_leave":
+                sys.stderr.write("LEAVING\\n"); sys.stderr.flush()
+                time.sleep(3.0)
+    sys.stdout = Held(sys.stdout)
+sys.argv = ["piecs-bayes", *sys.argv[1:]]
+runpy.run_module("piecs_bayes.cli", run_name="__main__")
+"""
+
+
+@pytest.mark.parametrize("moment", [0.5, 1.0, 1.6, "leaving"])
+def test_ctrl_c_at_any_moment_is_130_one_line_and_whole_outputs(tmp_path, moment):
+    """SIGINT to `fit` while it imports, reads, fits, writes, and while it leaves (its
+    outputs written): exit 130 with one line, never a traceback, outputs whole or
+    absent; or 0 and every output when the fit had ended before the signal."""
+    out = tmp_path / "out"
+    env = {**os.environ, "JAX_PLATFORMS": "cpu", "MPLBACKEND": "Agg",
+           "HOLD": "1" if moment == "leaving" else ""}  # fmt: skip
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _CHILD, "fit", str(DEMO / "study.toml"), "-q", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT, env=env,
+    )  # fmt: skip
+    try:
+        if moment == "leaving":
+            assert proc.stderr.readline() == "LEAVING\n"
+        else:
+            time.sleep(moment)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    lines = err.strip().splitlines()
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+    assert not [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]
+    if moment == "leaving" or proc.returncode != 0:
+        assert proc.returncode == 130, (proc.returncode, err)
+        assert lines == ["piecs-bayes: interrupted: stopped by Ctrl-C; no partial output was left"]
+    written = sorted(p.name for p in out.iterdir()) if out.exists() else []
+    if moment == "leaving" or proc.returncode == 0:  # the fit ended: every output whole
+        assert written == ["fit.csv", "fit.json", "residuals.csv"], written
+    for name in written:
+        assert (out / name).stat().st_size > 0
+    if "fit.json" in written:
+        json.loads((out / "fit.json").read_text(encoding="utf-8"))
