@@ -33,6 +33,11 @@ PROBE_FORMATS = ("csv", "linuxcnc", "linuxcnc-log", "fanuc-dprnt")
 _MM_PER = {"mm": 1.0, "in": 25.4}
 _NUM = r"[+-]?\s*(?:\d+\.?\d*|\.\d+)"
 _DPRNT = re.compile(rf"^\s*X\s*({_NUM})\s+Z\s*({_NUM})\s*$")
+#: what a control or a CAM system's inspection print puts around the DPRNT lines: Haas's
+#: POPEN and PCLOS send DC2 and DC4 on the port, a file captured from it the `%` of the
+#: program's tape format; a print of a CAM system heads and ends its points with a word
+_PORT_CONTROL = "\x12\x14"
+_HEADER = re.compile(r"^[A-Za-z][A-Za-z _:-]*$")
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,6 +173,54 @@ def _is_number(p: str) -> bool:
     return True
 
 
+def _dprnt_lines(path) -> list[tuple[int, str]]:
+    """The DPRNT lines of a file captured from a control's port, with their line
+    numbers: DC2/DC4 at a line's ends, `%` lines, CR LF ends and header words before the
+    first point or after the last (`START`, `END`) are what a port carries and are left
+    out; any other control character is refused, naming its line and column."""
+    name = str(path)
+    text = decode(read_bytes(path, what="probe file"), file=name)
+    rows, header, after_points = [], [], False
+    for i, raw in enumerate(text.split("\n"), start=1):
+        s = raw[:-1] if raw.endswith("\r") else raw
+        core = s.strip(_PORT_CONTROL + " \t")
+        bad = _stray_control(s)
+        if bad is not None:
+            raise InputError(
+                f"control character 0x{ord(s[bad]):02x} at line {i}, column {bad + 1}: not "
+                "a byte of a DPRNT print (DC2 and DC4 are read only where POPEN and "
+                "PCLOS send them, at a line's ends)",
+                file=name, line=i, value=f"0x{ord(s[bad]):02x}",
+            )  # fmt: skip
+        if not core or core == "%":
+            continue
+        if _HEADER.match(core):
+            header.append((i, core))
+            after_points = bool(rows)
+            continue
+        if after_points:
+            j, word = header[-1]
+            raise InputError(
+                f"{word!r} between the points (a point follows it at line {i}): a DPRNT "
+                "print has its header words before the first point and after the last only",
+                file=name, line=j, value=word[:80],
+            )  # fmt: skip
+        rows.append((i, core))
+    return rows
+
+
+def _stray_control(s: str) -> int | None:
+    """The column (from 0) of the first control character of line `s` that a port does
+    not send: any but a tab, and DC2/DC4 inside the line rather than at its ends."""
+    edge = _PORT_CONTROL + " \t%"
+    for c, ch in enumerate(s):
+        if (ord(ch) < 32 and ch != "\t") or ord(ch) == 127:
+            at_an_end = not s[:c].strip(edge) or not s[c + 1 :].strip(edge)
+            if not (ch in _PORT_CONTROL and at_an_end):
+                return c
+    return None
+
+
 def _parse_dprnt(rows, name, x_mode):
     vals = []
     for i, s in rows:
@@ -228,7 +281,7 @@ def read_control_probe(
                 feature=plan.feature[j],
             )
     elif fmt == "fanuc-dprnt":
-        rows = _lines(path)
+        rows = _dprnt_lines(path)
         pts, xs = _parse_dprnt(rows, name, x_mode or plan.x_mode)
         lines = np.array([i for i, _ in rows], dtype=np.int64)
     else:

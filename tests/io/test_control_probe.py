@@ -194,3 +194,55 @@ def test_a_failed_probe_at_its_rounded_target_is_refused(gauged, fmt):
         lines = [f"X{2 * x:10.4f} Z{z:10.4f}\n" for x, z in pts]
     msg = _refused(tmp, pl, lines, fmt=fmt)
     assert "bad.txt:9" in msg and "point 9 of the plan" in msg and "failed probe" in msg
+
+
+def _dprnt_bytes(centres, *, crlf=True, port=True, percent=True, header=False) -> bytes:
+    """A DPRNT print as it arrives from a Haas port: DC2 and `%` from POPEN, one line per
+    touch (`[44]` widths), `%` and DC4 from PCLOS; a CAM system's print adds START/END."""
+    end = "\r\n" if crlf else "\n"
+    lines = [f"X{2 * x:10.4f} Z{z:10.4f}" for x, z in centres]
+    if header:
+        lines = ["START", *lines, "END"]
+    if percent:
+        lines = ["%", *lines, "%"]
+    body = end.join(lines) + end
+    return (("\x12" + body + "\x14") if port else body).encode("ascii")
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [{}, {"crlf": False}, {"port": False}, {"percent": False, "port": False}, {"header": True},
+     {"header": True, "crlf": False, "percent": False}],
+    ids=["haas-port", "lf", "no-dc", "plain", "cam-header", "cam-header-lf"],
+)  # fmt: skip
+def test_a_dprnt_file_as_the_port_wrote_it_is_read(gauged, kw):
+    tmp, study, plan, centres = gauged
+    (tmp / "port.txt").write_bytes(_dprnt_bytes(centres, **kw))
+    pl = read_plan_points(tmp / "plan.json")
+    got = read_control_probe(tmp / "port.txt", "fanuc-dprnt", pl, x_mode="diameter")
+    np.testing.assert_allclose(got.points, centres, rtol=0, atol=0.5e-4 + 1e-12)
+    first = 1 + kw.get("percent", True) + kw.get("header", False)
+    assert list(got.lines) == list(range(first, first + len(centres)))
+
+
+@pytest.mark.parametrize(
+    ("mutate", "line", "words"),
+    [
+        (lambda b: b.replace(b"Z", b"Z\x07", 1), 2, ["0x07", "line 2, column 14"]),
+        (lambda b: b.replace(b"X", b"X\x12", 1), 2, ["0x12", "line 2, column 2"]),
+        (lambda b: b.replace(b"\r\nX", b"\r\n\x00X", 1), 2, ["0x00", "line 2, column 1"]),
+        (lambda b: b.replace(b"\r\nX", b"\r\nPROBE\r\nX", 2), 4, ["'PROBE' between the points"]),
+    ],
+    ids=["bel", "dc2-inside", "nul", "word-between"],
+)
+def test_any_other_byte_of_a_dprnt_file_is_refused_naming_line_and_column(
+    gauged, mutate, line, words
+):
+    tmp, study, plan, centres = gauged
+    (tmp / "bad_port.txt").write_bytes(mutate(_dprnt_bytes(centres)))
+    with pytest.raises(InputError) as exc:
+        read_control_probe(tmp / "bad_port.txt", "fanuc-dprnt", read_plan_points(tmp / "plan.json"))
+    msg = str(exc.value)
+    assert f"bad_port.txt:{line}" in msg, msg
+    for w in words:
+        assert w in msg, msg
