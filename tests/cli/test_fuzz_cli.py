@@ -574,6 +574,43 @@ def test_each_control_probe_fault_gets_its_one_line_message(capsys, gauge_copy, 
     assert len(text.strip().splitlines()) == 1, text
 
 
+def _dprnt_port(gauge_copy) -> bytes:
+    """The gauge plan's ball centres as a Haas port delivers the DPRNT print: DC2 and %
+    from POPEN, CR LF line ends, % and DC4 from PCLOS (X a diameter, `[44]` widths)."""
+    tmp, lines = gauge_copy
+    pts = [(float(ln.split()[0]), float(ln.split()[2])) for ln in lines]
+    body = "\r\n".join(["%", *(f"X{2 * x:10.4f} Z{z:10.4f}" for x, z in pts), "%"])
+    return ("\x12" + body + "\r\n\x14").encode("ascii")
+
+
+#: a DPRNT file from a port with one fault: (name, change of its bytes, the message)
+DPRNT_CLASSES = [
+    ("as_sent", lambda b: b, None),
+    ("bel", lambda b: b.replace(b"Z", b"Z\x07", 3), "part.txt:2: control character 0x07 at line 2, column 14"),
+    ("nul", lambda b: b.replace(b"\r\nX", b"\r\n\x00X", 2), "part.txt:2: control character 0x00 at line 2, column 1"),
+    ("dc4_inside", lambda b: b.replace(b" Z", b"\x14Z", 1), "part.txt:2: control character 0x14 at line 2, column 12"),
+    ("word_between", lambda b: b.replace(b"\r\nX", b"\r\nEND\r\nX", 3), "'END' between the points"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("case", DPRNT_CLASSES, ids=[c[0] for c in DPRNT_CLASSES])
+def test_each_dprnt_port_fault_gets_its_one_line_message(capsys, gauge_copy, case):
+    tmp, _ = gauge_copy
+    name, change, expect = case
+    text = (tmp / "study.toml").read_text().replace('"linuxcnc"', '"fanuc-dprnt"')
+    (tmp / "dprnt.toml").write_text(text)
+    (tmp / "part.txt").write_bytes(change(_dprnt_port(gauge_copy)))
+    before = _digest(tmp)
+    out = tmp / f"out_dprnt_{name}"
+    rc, said = _run(capsys, ["fit", tmp / "dprnt.toml", "--out", out, "-q"])
+    _check(rc, said, tmp, before, ["part.txt"], out)
+    if expect is None:
+        assert rc == 0, said
+    else:
+        assert rc == 2 and expect in said, said
+        assert len(said.strip().splitlines()) == 1, said
+
+
 # --------------------------------------------------------------------------- issue 38
 
 
