@@ -124,6 +124,13 @@ def register(sub) -> None:
         default=None,
         help="gauge, LinuxCNC: also write the (LOGOPEN,...) file of the program's LOG lines",
     )
+    p.add_argument(
+        "--full-circle",
+        action="store_true",
+        help="calibration: probe the sphere from all around (24 directions over 360 "
+        "degrees); default: the half a lathe reaches on a sphere on the spindle axis, from "
+        "+X and both sides along Z (24 directions from -90 to +90 degrees about +X)",
+    )
     p.add_argument("--parts", type=T.positive_int, default=36, help="batch: number of parts")
     p.add_argument(
         "--points",
@@ -223,7 +230,8 @@ def cmd_simulate(args, console) -> int:
         from ..simulate import write_calibration_sim
 
         rep = 0.0015 if args.repeatability is None else args.repeatability
-        for p in write_calibration_sim(out, seed=args.seed, repeatability=rep):
+        circle = "full" if args.full_circle else "lathe"
+        for p in write_calibration_sim(out, seed=args.seed, repeatability=rep, directions=circle):
             console.say(f"wrote {p}")
         return 0
     if args.which == "demo":

@@ -29,10 +29,14 @@ from ._options import BatchOptions as BatchOptions
 from ._options import BayesOptions as BayesOptions
 from ._options import CalibrationOptions as CalibrationOptions
 from ._options import FitOptions as FitOptions
-from ._probe_cal_fit import AUTO_ORDERS as AUTO_ORDERS
-from ._probe_cal_fit import COND_LIMIT as COND_LIMIT
+from ._probe_cal_design import COND_LIMIT as COND_LIMIT
+from ._probe_cal_design import CalibrationDesign as CalibrationDesign
 from ._probe_cal_fit import fit_probe_calibration as fit_probe_calibration
 from ._probe_cal_fit import repeatability_check as repeatability_check
+from ._probe_cal_orders import AUTO_ORDERS as AUTO_ORDERS
+from ._probe_cal_orders import LATHE_DIRECTIONS as LATHE_DIRECTIONS
+from ._probe_cal_orders import choose_orders as choose_orders
+from ._probe_cal_orders import direction_check as direction_check
 from ._profile_fit import ProfileFit as ProfileFit
 from ._profile_fit import fit_profile as fit_profile
 from ._sigma import DECLARED_DOF as DECLARED_DOF

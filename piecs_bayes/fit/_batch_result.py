@@ -10,6 +10,7 @@ import numpy as np
 
 from ..errors import AnalysisError, InputError
 from ..geometry import Profile
+from ._failure import fit_failure
 from ._features import FeatureFit, embed_free, surface_and_nominal
 from ._profile_result import ProfileFit
 from ._sigma import DECLARED_DOF, probe_sigma, sigma_arrays
@@ -227,15 +228,25 @@ class BatchFit:
 
     def part_error(self, part: str | int) -> str | None:
         """The message [`fit_profile`][] would raise for this part (its first failed
-        feature in profile order), or `None` when every feature converged."""
-        i = self._part_index(part)
-        for fid in self.profile.ids:
-            if fid not in self._index:
+        feature in profile order, `fit_failure`), or `None` when every feature
+        converged."""
+        exc = self._failure(self._part_index(part))
+        return None if exc is None else str(exc)
+
+    def _failure(self, i: int) -> AnalysisError | None:
+        """The `AnalysisError` of part `i`'s first failed feature (`fit_failure`: the
+        feature, part and file named; a degenerate robust fit's down-weighted points by
+        line), or None."""
+        for j, f in enumerate(self.profile.features):
+            g_i, row = (int(v) for v in self._where[i, j])
+            if g_i < 0 or f.id not in self._index:
                 continue
-            s = int(self.status(fid)[i])
-            if s > 0:
-                steps = int(self.steps(fid)[i])
-                return f"least-squares fit failed: {Status(s).message} (after {steps} steps)"
+            g = self.groups[g_i]
+            if int(g.arrays["status_code"][row]) > 0:
+                start, n = int(g.start[row]), int(g.count[row])
+                lines = self.lines[self.order[start : start + n]]
+                res = self._result(g, row)
+                return fit_failure(f, res, lines, part=self.parts[i], file=self.file)
         return None
 
     def _part_index(self, part: str | int) -> int:
@@ -330,20 +341,9 @@ class BatchFit:
 
     def _raise_failure(self, i: int) -> None:
         """`fit_profile`'s `AnalysisError` for part `i`'s first failed feature, if any."""
-        where = [(int(g_i), int(row)) for g_i, row in self._where[i] if g_i >= 0]
-        ok = int(Status.SUCCESSFUL)
-        if all(self.groups[g].arrays["status_code"][r] == ok for g, r in where):
-            return
-        message = self.part_error(i)
-        if message is None:
-            return
-        for j, f in enumerate(self.profile.features):
-            g_i, row = (int(v) for v in self._where[i, j])
-            if g_i >= 0 and f.id in self._index:
-                res = self._result(self.groups[g_i], row)
-                if res.status is not Status.SUCCESSFUL:
-                    raise AnalysisError(message, result=res)
-        raise AnalysisError(message)
+        exc = self._failure(i)
+        if exc is not None:
+            raise exc
 
     def rows(self) -> list[dict]:
         """One row per part, feature and parameter (for CSV / DataFrames), in the

@@ -27,8 +27,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import Feature, machine_to_part, rotate
+from ._failure import fit_failure
 from ._options import FitOptions
-from .lsq import LsqResult, least_squares
+from .lsq import LsqResult, Status, least_squares
 
 
 def geometry_args(feature: Feature):
@@ -238,8 +239,10 @@ def fit_feature(
         scale=options.scale,
         sigma=options.sigma,
         solver=options.engine_solver(),
-        throw=throw,
+        throw=False,
     )
+    if throw and res.status is not Status.SUCCESSFUL:
+        raise fit_failure(feature, res, np.arange(1, n + 1) if lines is None else lines)
     values, cov = embed_free(feature.nparams, free, res.params, res.covariance)
     se = None if cov is None else np.sqrt(np.diag(cov))
     surface, nominal = map(

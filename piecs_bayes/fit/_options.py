@@ -195,7 +195,9 @@ class CalibrationOptions:
 
     **Fields:**
 
-    - `orders`: `"auto"` or a tuple of orders in (2, 3) (`()`: one radius).
+    - `orders`: `"auto"` (chosen by the u of r(theta) at the parts' directions,
+      `choose_orders`), `"a2"` (one radius per axis) or a tuple of orders in (2, 3)
+      (`()`: one radius).
     - `sigma_dof`: what the declared repeatability is worth (the scaled-inverse-chi^2
       prior's nu, `method="bayes"`).
     - `sigma_known`: the covariance from the declared repeatability (dof infinite)

@@ -7,8 +7,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import AnalysisError, InputError
 from ..geometry import Profile
+from ._failure import fit_failure
 from ._features import fit_feature
 from ._options import FitOptions
 from ._part_fit import check_feature_ids, fit_part
@@ -67,7 +68,7 @@ def fit_profile(
         return fit_part(profile, feature_ids, centres, lines, options, file, part, ref,
                         ball_radius)  # fmt: skip
     check_feature_ids(profile, feature_ids, lines, file)
-    data = (profile, feature_ids, centres, lines, file, ball_radius)
+    data = (profile, feature_ids, centres, lines, file, ball_radius, part)
     fits, unmeasured = _fit_features(data, options, ref)
     if sigma is None and declared is None and fits:
         ss, dof = pooled_residuals(fits.values())
@@ -97,8 +98,9 @@ def fit_profile(
 
 def _fit_features(data, options: FitOptions, ref: float):
     """Every measured feature fitted with covariances at the reference sigma `ref`;
-    `data` = `(profile, feature_ids, centres, lines, file, ball_radius)`."""
-    profile, feature_ids, centres, lines, file, ball_radius = data
+    `data` = `(profile, feature_ids, centres, lines, file, ball_radius, part)`; a
+    failed feature raises `fit_failure`'s error, naming the part and the file."""
+    profile, feature_ids, centres, lines, file, ball_radius, part = data
     at_ref = replace(options, sigma=ref)
     fits, unmeasured = {}, []
     for f in profile.features:
@@ -115,9 +117,12 @@ def _fit_features(data, options: FitOptions, ref: float):
                 feature=f.id,
                 value=k,
             )
-        fits[f.id] = fit_feature(
-            f, centres[m], ball_radius=ball_radius, options=at_ref, lines=lines[m]
-        )
+        try:
+            fits[f.id] = fit_feature(
+                f, centres[m], ball_radius=ball_radius, options=at_ref, lines=lines[m]
+            )
+        except AnalysisError as exc:
+            raise fit_failure(f, exc.result, lines[m], part=part, file=file) from None
     return fits, unmeasured
 
 

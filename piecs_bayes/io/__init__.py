@@ -30,6 +30,7 @@ from ._probe import ProbeData as ProbeData
 from ._probe import read_probe_csv as read_probe_csv
 from ._probe import read_probe_csv_by_rows as read_probe_csv_by_rows
 from ._probe_cal import CALIBRATION_FORMAT as CALIBRATION_FORMAT
+from ._probe_cal import PER_AXIS as PER_AXIS
 from ._probe_cal import ProbeCalibration as ProbeCalibration
 from ._probe_cal import approach_angle as approach_angle
 from ._probe_cal import coefficient_names as coefficient_names

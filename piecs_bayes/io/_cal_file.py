@@ -24,6 +24,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ._control_probe import PROBE_FORMATS
+from ._probe_cal import PER_AXIS
 from ._reader import Reader
 from ._text import decode, read_bytes
 
@@ -119,8 +120,9 @@ class CalibrationProbeFile:
 
 @dataclass(frozen=True)
 class CalibrationFile:
-    """A checked calibration file (module docstring). `orders` is ``"auto"`` or a
-    sorted tuple of orders in (2, 3); `repeatability` the declared sigma (mm)."""
+    """A checked calibration file (module docstring). `orders` is ``"auto"``, ``"a2"``
+    (one radius per axis) or a sorted tuple of orders in (2, 3); `repeatability` the
+    declared sigma (mm)."""
 
     path: Path
     probe: str
@@ -147,17 +149,19 @@ def _check_keys(r: Reader, table: dict, name: str, shown: str | None = None) -> 
 
 
 def parse_orders(value, where: str = "orders") -> str | tuple[int, ...]:
-    """``"auto"`` or a sorted tuple of distinct orders in (2, 3) (``[]``: K = 0)."""
-    if value == "auto":
-        return "auto"
+    """``"auto"``, ``"a2"`` (one radius per axis: r0 + a2 cos 2 theta) or a sorted
+    tuple of distinct orders in (2, 3) (``[]``: K = 0)."""
+    if value in ("auto", PER_AXIS):
+        return value
     if (
         not isinstance(value, list | tuple)
         or any(isinstance(k, bool) or k not in (2, 3) for k in value)
         or len(set(value)) != len(value)
     ):
         raise InputError(
-            f"{where}: expected \"auto\" or a list of distinct orders out of [2, 3] ([] for "
-            f"one radius), got {value!r} (order 1 is the probe's offset: never fitted)",
+            f"{where}: expected \"auto\", \"a2\" (one radius per axis) or a list of distinct "
+            f"orders out of [2, 3] ([] for one radius), got {value!r} (order 1 is the probe's "
+            "offset: never fitted)",
             value=value,
         )  # fmt: skip
     return tuple(sorted(int(k) for k in value))

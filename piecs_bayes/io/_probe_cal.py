@@ -2,15 +2,14 @@ r"""A probe calibration: the effective ball radius by approach direction, and it
 
 A touch-trigger probe triggers after a pretravel that depends on the direction of
 approach, so the distance from a recorded ball centre to the surface (the **effective
-radius**) is $r(\theta) = r_0 + \sum_k a_k \cos k\theta + b_k \sin k\theta$, orders $k$
-in `ALLOWED_ORDERS` (2, 3), with $\theta$ = [`approach_angle`][] of the unit approach
-direction $a$ (the ball's travel into the surface, part frame, radius X):
-$\operatorname{atan2}(a_z, a_x)$. [`ProbeCalibration`][] is what `piecs-bayes
-calibrate-probe` writes (``probe_cal.json``, `CALIBRATION_FORMAT`) and what `[probe]
-calibration` reads ([`read_probe_calibration`][]): the coefficients, their covariance
-and dof; `ProbeCalibration.radius` gives $r(\theta)$ and `ProbeCalibration.components`
-the covariance as independent components, one systematic source correlated over all
-points ([`lobe_basis`][]: the Fourier basis).
+radius**) is $r(\theta) = r_0 + \sum_k a_k \cos k\theta + b_k \sin k\theta$, orders in
+`ALLOWED_ORDERS` (2, 3), $\theta$ = [`approach_angle`][] of the ball's unit travel
+into the surface (part frame, radius X); one radius per axis (`PER_AXIS`) is order 2
+with b2 held at zero. [`ProbeCalibration`][] is what `piecs-bayes calibrate-probe`
+writes (``probe_cal.json``, `CALIBRATION_FORMAT`) and `[probe] calibration` reads
+([`read_probe_calibration`][]): the coefficients, their covariance and dof;
+`ProbeCalibration.radius` gives $r(\theta)$, `ProbeCalibration.components` the
+covariance as independent components ([`lobe_basis`][]: the Fourier basis).
 
 The model and its use by every fit: docs/uncertainty.md, section 5.
 """
@@ -31,6 +30,9 @@ from ..errors import InputError
 CALIBRATION_FORMAT = "piecs-bayes probe calibration 1"
 #: The orders of r(theta) a calibration may hold (order 1 is the probe's offset).
 ALLOWED_ORDERS = (2, 3)
+#: The model of one radius per axis, r0 + a2 cos 2 theta (r0 + a2 along X, r0 - a2
+#: along Z; b2 held at zero): what a ring or diameter with a face pair determines.
+PER_AXIS = "a2"
 
 
 def approach_angle(approach) -> np.ndarray:
@@ -68,6 +70,11 @@ class ProbeCalibration:
     - `feed` (mm/min, None when unknown), `date` (ISO date), `probe` (the probe's
       name or tool number, as the calibration file gave), `units` ("mm").
     - `inputs`: ``[{"file", "sha256"}]``; `source`: the probe_cal.json read (or None).
+    - `fixed`: coefficients the model holds at zero (not fitted, no uncertainty):
+      ``("b2",)`` for one radius per axis, r0 + a2 cos 2 theta (`orders` (2,)).
+    - `directions`: the calibration's distinct approach angles (degrees, sorted).
+    - `orders_choice`: how ``orders = "auto"`` chose (`fit.fit_probe_calibration`):
+      the target directions and each candidate's u of r there (a JSON object).
     """
 
     orders: tuple[int, ...]
@@ -84,6 +91,9 @@ class ProbeCalibration:
     inputs: tuple = ()
     n_points: int = 0
     source: str | None = None
+    fixed: tuple[str, ...] = ()
+    directions: tuple[float, ...] = ()
+    orders_choice: dict | None = field(default=None, repr=False)
 
     def __post_init__(self):
         names = coefficient_names(self.orders)
@@ -93,8 +103,13 @@ class ProbeCalibration:
             raise ValueError(
                 f"coefficients {c.size} and cov {cov.shape} do not fit orders {self.orders}"
             )
+        bad = [n for n in self.fixed if n not in names[1:]]
+        if bad:
+            raise ValueError(f"fixed coefficients {bad} are not among {names[1:]}")
         object.__setattr__(self, "coefficients", c)
         object.__setattr__(self, "cov", 0.5 * (cov + cov.T))
+        object.__setattr__(self, "fixed", tuple(self.fixed))
+        object.__setattr__(self, "directions", tuple(float(d) for d in self.directions))
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -138,14 +153,15 @@ class ProbeCalibration:
         def num(v):
             return None if math.isnan(v) or math.isinf(v) else float(v)
 
-        return {
+        out = {
             "format": CALIBRATION_FORMAT,
             "units": self.units,
             "probe": self.probe,
             "date": self.date,
             "feed_mm_per_min": self.feed,
             "model": "r(theta) = r0 + sum_k a_k cos(k theta) + b_k sin(k theta); "
-            "theta = atan2(a_z, a_x) of the approach direction",
+            "theta = atan2(a_z, a_x) of the approach direction"
+            + ("; held at zero: " + ", ".join(self.fixed) if self.fixed else ""),
             "orders": list(self.orders),
             "coefficients": {n: float(v) for n, v in zip(names, self.coefficients, strict=True)},
             "standard_uncertainty": {n: float(v) for n, v in zip(names, sd, strict=True)},
@@ -157,6 +173,13 @@ class ProbeCalibration:
             "artefact": dict(self.artefact),
             "inputs": [dict(i) for i in self.inputs],
         }  # fmt: skip
+        if self.fixed:
+            out["fixed_at_zero"] = list(self.fixed)
+        if self.directions:
+            out["directions_deg"] = list(self.directions)
+        if self.orders_choice is not None:
+            out["orders_choice"] = self.orders_choice
+        return out
 
     def to_json_text(self) -> str:
         return json.dumps(self.to_json(), indent=2) + "\n"
@@ -171,6 +194,30 @@ def _number(obj, key, where, *, positive=False, allow_none=False):
     if positive and v <= 0:
         raise InputError(f"{where}: {key!r} must be positive, got {v!r}", value=v)
     return float(v)
+
+
+def _extras(obj: dict, names, c, cov, where: str) -> dict:
+    """The optional keys: `fixed_at_zero` (each a coefficient at 0 with no variance),
+    `directions_deg` and `orders_choice`."""
+    fixed = obj.get("fixed_at_zero") or []
+    if not isinstance(fixed, list) or any(n not in names[1:] for n in fixed):
+        raise InputError(f"fixed_at_zero must name coefficients out of {list(names[1:])}, "
+                         f"got {fixed!r}", file=where, value=fixed)  # fmt: skip
+    for n in fixed:
+        i = names.index(n)
+        if c[i] != 0.0 or np.any(cov[i] != 0.0):
+            raise InputError(f"{n} is held at zero (fixed_at_zero) but its value is {c[i]!r} "
+                             "or it has a covariance", file=where, value=n)  # fmt: skip
+    dirs = obj.get("directions_deg") or []
+    if not isinstance(dirs, list) or not all(
+        isinstance(d, int | float) and not isinstance(d, bool) and math.isfinite(d) for d in dirs
+    ):
+        raise InputError(f"directions_deg must be a list of angles (degrees), got {dirs!r}",
+                         file=where, value=dirs)  # fmt: skip
+    choice = obj.get("orders_choice")
+    if choice is not None and not isinstance(choice, dict):
+        raise InputError(f"orders_choice must be an object, got {choice!r}", file=where)
+    return {"fixed": tuple(fixed), "directions": tuple(dirs), "orders_choice": choice}
 
 
 def read_probe_calibration(path, *, units: str = "mm") -> ProbeCalibration:
@@ -245,5 +292,5 @@ def read_probe_calibration(path, *, units: str = "mm") -> ProbeCalibration:
         artefact=dict(obj.get("artefact") or {}), feed=feed,
         date=None if date is None else str(date), probe=obj.get("probe"), units=units,
         inputs=tuple(obj.get("inputs") or ()), n_points=int(obj.get("n_points") or 0),
-        source=where,
+        source=where, **_extras(obj, names, c, cov, where),
     )  # fmt: skip

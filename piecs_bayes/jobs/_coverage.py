@@ -208,7 +208,7 @@ def coverage_check(
     if probe is not None and calibrated:
         radius = radius_components(probe)
         sim = {**sim, "points": calibrated_points(
-            profile, sim["feature"], sim["points"], transform, probe
+            profile, sim["feature"], sim["points"], transform, probe, parts=sim["part"]
         )}  # fmt: skip
         ball_radius = probe.r0
     prop_sd = {**source_sd, **(radius.source_sd if radius else {})}

@@ -40,7 +40,7 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
     plausibility checks (`io.check_probe_data`: distance from the nominal feature,
     position along it, repeated triggers) before anything is fitted. With a probe
     calibration (`[probe] calibration`) the points are then corrected to its r0
-    (`calibrated_points`: each along its approach by r(theta) - r0).
+    (`calibrated_points`: each along its contact normal by r(theta) - r0).
     """
     files = list(files) if files is not None else list(study.probe_files)
     if not files:
@@ -67,7 +67,7 @@ def load_probe_data(study: Study, files=None) -> ProbeData:
             replace(
                 d,
                 points=calibrated_points(
-                    study.profile, d.feature, d.points, study.transform, cal, d.approach
+                    study.profile, d.feature, d.points, study.transform, cal, d.approach, d.part
                 ),
             )  # fmt: skip
             for d in datas

@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import InputError
 from ..fit import CALIBRATION_SAMPLING, CalibrationOptions, fit_probe_calibration
 from ..io import (
+    PER_AXIS,
     CalibrationFile,
     ProbeCalibration,
     parse_orders,
@@ -30,19 +31,41 @@ from ..io import (
 
 
 def parse_orders_option(text: str | None):
-    """``--orders``: None (the file's), ``auto``, ``0`` (one radius), ``2`` or ``2,3``."""
+    """``--orders``: None (the file's), ``auto``, ``0`` (one radius), ``a2`` (one
+    radius per axis), ``2``, ``3`` or ``2,3``."""
     if text is None:
         return None
     text = text.strip()
-    if text == "auto":
-        return "auto"
+    if text in ("auto", PER_AXIS):
+        return text
     if text == "0":
         return ()
     try:
         ks = [int(k) for k in text.split(",")]
     except ValueError:
-        raise InputError(f"--orders: expected auto, 0, 2, 3 or 2,3, got {text!r}") from None
+        raise InputError(f"--orders: expected auto, 0, a2, 2, 3 or 2,3, got {text!r}") from None
     return parse_orders(ks, "--orders")
+
+
+def parse_directions_option(text: str | None, plan=None):
+    """The target directions of ``orders = "auto"`` (degrees): ``--directions``
+    (``180,90,-90``) or the approach angles of a probe plan's points (``--plan``,
+    `io.read_plan_points`); None when neither is given."""
+    if text is not None and plan is not None:
+        raise InputError("--directions and --plan both give the target directions: give one")
+    if plan is not None:
+        a = read_plan_points(plan).approach
+        return np.degrees(np.arctan2(a[:, 1], a[:, 0]))
+    if text is None:
+        return None
+    try:
+        deg = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise InputError(f"--directions: expected angles in degrees separated by commas "
+                         f"(e.g. 180,90,-90), got {text!r}", value=text) from None  # fmt: skip
+    if not all(np.isfinite(deg)):
+        raise InputError(f"--directions: expected finite angles, got {text!r}", value=text)
+    return np.asarray(deg)
 
 
 def _nominal_approach(cal: CalibrationFile, points, face) -> np.ndarray:
@@ -88,13 +111,15 @@ def _sha256(path) -> str:
 
 
 def calibrate_probe(
-    path, *, method: str = "lsq", orders=None, seed: int = 0, progress=False
+    path, *, method: str = "lsq", orders=None, seed: int = 0, progress=False, directions=None
 ) -> ProbeCalibration:
     """Calibrate a probe from the calibration file `path` (`io.read_calibration_file`).
 
-    `method` ``"lsq"`` or ``"bayes"``; `orders` overrides the file's (``"auto"``, a
-    tuple, ``()``); `seed`, `progress`: the sampler's. Returns the `ProbeCalibration`
-    with probe, date, feed and the SHA-256 of every input."""
+    `method` ``"lsq"`` or ``"bayes"``; `orders` overrides the file's (``"auto"``,
+    ``"a2"``, a tuple, ``()``); `seed`, `progress`: the sampler's; `directions`: the
+    approach angles (degrees) the parts are probed from, where ``"auto"`` judges the
+    orders (default: the lathe's +X, +Z, -X, -Z). Returns the `ProbeCalibration` with
+    probe, date, feed and the SHA-256 of every input."""
     cal = read_calibration_file(path)
     centres, approach, face = calibration_points(cal)
     options = CalibrationOptions(
@@ -105,6 +130,7 @@ def calibrate_probe(
         cal.artefact, centres, approach, sigma_declared=cal.repeatability, options=options,
         face=face if cal.artefact.face_width is not None else None,
         sampling=dataclasses.replace(CALIBRATION_SAMPLING, seed=seed, progress=progress),
+        directions=directions,
     )  # fmt: skip
     inputs = tuple({"file": str(p), "sha256": _sha256(p)} for p in (cal.path, *cal.inputs))
     return dataclasses.replace(fit, probe=cal.probe, date=cal.date, feed=cal.feed, inputs=inputs)

@@ -1,16 +1,16 @@
 """``piecs-bayes simulate calibration``: a probe calibration run on a certified sphere
 with its truth.
 
-The ball travels toward the sphere's nominal centre from each of `n_directions`
-approach angles evenly over 360 degrees in the XZ plane; it stops where its centre is
-at the effective radius r(theta) from the surface of the true sphere (the true centre
-is off the nominal by `centre_offset`, which the fit does not know), plus a normal
-error of sd `repeatability` along the travel. The truth r(theta): r0 = `ball_radius`
-+ 0.004 mm and a 3-lobe term of 1.5 um amplitude (a kinematic seat), no order 2.
-The sphere's true diameter is the certified one (the certificate is exact here).
-
-Writes ``calibration.toml``, ``cal_points.csv`` (X as a radius, no approach columns:
-the directions come from the nominal centre) and ``truth.json``.
+The ball travels toward the sphere's nominal centre from `n_directions` directions in
+the XZ plane: by default (`directions="lathe"`) the half a lathe reaches on a sphere
+on the spindle axis, from +X and both sides along Z (approach angles 90 to 270
+degrees, ends included), or the full circle (`"full"`). It stops where its centre is
+at the effective radius r(theta) from the true sphere (centre off the nominal by
+`centre_offset`, unknown to the fit), plus a normal error of sd `repeatability` along
+the travel. The truth r(theta): r0 = `ball_radius` + `R0_OFFSET` and a 3-lobe term of
+`lobe3` (1.5 um: a kinematic seat), no order 2; the sphere's diameter is the
+certified one. Writes ``calibration.toml``, ``cal_points.csv`` (X as a radius, no
+approach columns) and ``truth.json``.
 """
 
 from __future__ import annotations
@@ -24,21 +24,36 @@ import numpy as np
 from ..io import coefficient_names, lobe_basis, write_text_atomic
 
 TRUTH_ORDERS = (2, 3)
+#: `directions`: the half circle a lathe reaches, or the full circle
+SPHERE_DIRECTIONS = ("lathe", "full")
+
+
+def approach_angles(directions: str, n: int) -> np.ndarray:
+    """The approach angles (rad) of `n` probe moves toward a sphere (module docstring)."""
+    if directions == "lathe":
+        return np.radians(180.0 + np.linspace(-90.0, 90.0, n))
+    if directions == "full":
+        return np.radians(np.arange(n) * 360.0 / n)
+    raise ValueError(f"directions {directions!r}; expected one of {SPHERE_DIRECTIONS}")
+
+
+R0_OFFSET = 0.004
+"""mm: the simulated probe's r0 above its ball radius (its mean pretravel)."""
 
 
 def simulate_calibration(
     *, seed: int = 0, n_directions: int = 24, diameter: float = 25.0004,
     centre=(0.0, -40.0), centre_offset=(0.012, -0.008), ball_radius: float = 3.0,
-    r0_offset: float = 0.004, lobe3: float = 0.0015, phase3_deg: float = 20.0,
-    repeatability: float = 0.0015,
+    lobe3: float = 0.0015, phase3_deg: float = 20.0,
+    repeatability: float = 0.0015, directions: str = "lathe",
 ) -> dict:  # fmt: skip
     """The points and the truth (module docstring): ``{"points" (n, 2), "approach"
     (n, 2), "theta" (n,), "coefficients" (orders (2, 3)), "centre_true", ...}``."""
     rng = np.random.default_rng(seed)
-    theta = np.radians(np.arange(n_directions) * 360.0 / n_directions)
+    theta = approach_angles(directions, n_directions)
     a = np.c_[np.cos(theta), np.sin(theta)]
     ph = math.radians(phase3_deg)
-    coef = np.array([ball_radius + r0_offset, 0.0, 0.0, lobe3 * math.cos(ph), lobe3 * math.sin(ph)])
+    coef = np.array([ball_radius + R0_OFFSET, 0.0, 0.0, lobe3 * math.cos(ph), lobe3 * math.sin(ph)])
     r = lobe_basis(theta, TRUTH_ORDERS) @ coef
     c0 = np.asarray(centre, float)
     c = c0 + np.asarray(centre_offset, float)
@@ -52,7 +67,7 @@ def simulate_calibration(
     return {
         "points": points, "approach": a, "theta": theta, "orders": TRUTH_ORDERS,
         "coefficients": coef, "centre_nominal": c0, "centre_true": c, "diameter": diameter,
-        "repeatability": repeatability, "seed": seed,
+        "repeatability": repeatability, "seed": seed, "directions": directions,
     }  # fmt: skip
 
 
@@ -74,11 +89,13 @@ def _toml(sim: dict, *, expanded: float, k: float) -> str:
 def write_calibration_sim(
     out, *, seed: int = 0, n_directions: int = 24, repeatability: float = 0.0015,
     expanded_uncertainty: float = 0.0005, coverage_factor: float = 2.0, protect=None,
+    directions: str = "lathe",
 ) -> list[Path]:  # fmt: skip
     """Write the data set of `simulate_calibration` into folder `out`; returns the
     paths written."""
     out = Path(out)
-    sim = simulate_calibration(seed=seed, n_directions=n_directions, repeatability=repeatability)
+    sim = simulate_calibration(seed=seed, n_directions=n_directions, repeatability=repeatability,
+                               directions=directions)  # fmt: skip
     csv = "feature,x,z\n" + "".join(f"sphere,{x:.6f},{z:.6f}\n" for x, z in sim["points"])
     names = coefficient_names(sim["orders"])
     truth = {
@@ -87,7 +104,8 @@ def write_calibration_sim(
         "coefficients": dict(zip(names, map(float, sim["coefficients"]), strict=True)),
         "centre_true": [float(v) for v in sim["centre_true"]],
         "diameter_true_mm": sim["diameter"], "repeatability_mm": repeatability,
-        "n_directions": n_directions, "seed": seed,
+        "n_directions": n_directions, "directions": directions,
+        "approach_deg": [float(v) for v in np.degrees(sim["theta"])], "seed": seed,
     }  # fmt: skip
     toml = _toml(sim, expanded=expanded_uncertainty, k=coverage_factor)
     return [

@@ -5,10 +5,10 @@ deviation: a line moved and turned over its deviated extent, an arc with its dev
 centre and radius over its nominal sweep) as [`Piece`][] s; [`first_contact`][] gives,
 for a ball of radius ``r`` whose centre moves from ``a`` to ``b``, the fraction of the
 move at the first contact and the feature touched, or None; [`piece_distance`][] is a
-centre's distance from a piece. The roots are closed forms per piece (a line: linear;
-an arc: ``|c - C| = R +- r``; an end point: ``|c - E| = r``), solved in the
-cancellation-free form: exact to a few ulps of the coordinates (about 1e-14 mm on a
-100 mm part).
+centre's distance from a piece, [`contact_direction`][] the direction of the touch. The
+roots are closed forms per piece (a line: linear; an arc: ``|c - C| = R +- r``; an end
+point: ``|c - E| = r``), solved in the cancellation-free form: exact to a few ulps of
+the coordinates (about 1e-14 mm on a 100 mm part).
 
 The closed forms: docs/models/gauging.md, "The simulated machine".
 """
@@ -128,6 +128,25 @@ def piece_distance(piece: Piece, p) -> float:
     if _in_sweep(piece, p):
         return min(ends, abs(float(np.hypot(*(p - piece.center))) - piece.radius))
     return ends
+
+
+def contact_direction(piece: Piece, c) -> np.ndarray:
+    """Unit direction from a ball centre `c` touching `piece` to the point it touches
+    (the inward contact normal: the piece's nearest point, interior or end)."""
+    c = np.asarray(c, dtype=float)
+    ends = [piece.p0, piece.p1]
+    foot = min(ends, key=lambda e: float(np.hypot(*(c - e))))
+    if piece.kind == "line":
+        d = piece.p1 - piece.p0
+        t = d / float(np.hypot(*d))
+        lam = float((c - piece.p0) @ t)
+        if 0.0 <= lam <= float(np.hypot(*d)):
+            foot = piece.p0 + lam * t
+    elif _in_sweep(piece, c):
+        v = c - piece.center
+        foot = piece.center + piece.radius * v / float(np.hypot(*v))
+    w = foot - c
+    return w / float(np.hypot(*w))
 
 
 def first_contact(a, b, pieces, r: float) -> tuple[float, str] | None:

@@ -7,12 +7,12 @@ and the truth (per feature id its deviation, [`read_truth`][]). Along every prob
 the ball's first contact with the deviated profile (`_contact`) trips the probe later by
 a normal draw of sd `repeatability` (one per probe move, in program order, from
 ``numpy.random.default_rng(seed)``) plus the `pretravel` (mm, or a function of the
-approach angle). The control's errors are its messages (an `AnalysisError` for a G38.2
-move without contact, a probe tripped at a move's start or during a non-probe move); a
-G38.3 or G31 without contact records its end. [`GaugeRun`][] holds the trips and the
-file: LinuxCNC's PROBEOPEN lines (`%f`, X a radius even in G7) and LOG lines, or
-Fanuc's DPRNT lines. The machine, move by move: docs/models/gauging.md.
-"""
+contact normal's angle: a lobing probe). The control's errors are its messages (an
+`AnalysisError` for a G38.2 move without contact, a probe tripped at a move's start or
+during a non-probe move); a G38.3 or G31 without contact records its end. [`GaugeRun`][]
+holds the trips and the file: LinuxCNC's PROBEOPEN lines (`%f`, X a radius even in G7)
+and LOG lines, or Fanuc's DPRNT lines. The machine, move by move:
+docs/models/gauging.md."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import AnalysisError, InputError
 from ..gcode import GaugeMove, read_gauge_program
 from ..io import write_text_atomic
-from ._contact import first_contact, piece_distance, truth_pieces
+from ._contact import contact_direction, first_contact, piece_distance, truth_pieces
 
 MM_PER_INCH = 25.4
 #: mm: a move that starts this close to the part (just after a trip) leaves it; not checked
@@ -204,6 +204,12 @@ def _pretravel_of(pretravel, u) -> float:
     return v
 
 
+def _touch(pieces, hit, centre) -> np.ndarray:
+    """The inward contact normal of the first contact `hit` (a lobing probe's angle)."""
+    piece = next(pc for pc in pieces if pc.feature == hit[1])
+    return contact_direction(piece, centre)
+
+
 def _clear_at(pieces, p, r) -> float:
     return min(piece_distance(pc, p) for pc in pieces) - r
 
@@ -224,8 +230,10 @@ def simulate_gauge(
 
     - `repeatability`: sd (mm) of the trip along the move; `seed`: of
       ``numpy.random.default_rng``.
-    - `pretravel`: mm, or a function of the approach angle (rad, ``atan2(u_x, u_z)``)
-      giving mm; None: none.
+    - `pretravel`: mm along the move, or a function of the contact normal's angle (rad,
+      ``atan2(u_x, u_z)`` of the unit direction from the ball's centre to the point it
+      touches; along the move when the move is normal to the surface) giving mm; None:
+      none.
     - `x_mode_fanuc`: a Fanuc control's X mode (``"diameter"``/``"radius"``); None:
       the study's ``[plan] x_mode`` (default diameter). Ignored for LinuxCNC.
     """
@@ -292,12 +300,14 @@ def _probe(prog, move, start, pieces, r, noise, pretravel, index) -> GaugeTrip:
     b = np.asarray(move.target, dtype=float)
     length = float(np.hypot(*(b - a)))
     u = (b - a) / length
-    pre = _pretravel_of(pretravel, u)
     if _clear_at(pieces, a, r) <= 0.0:
         raise AnalysisError(f"{_where(prog, move)}: Probe is already tripped when starting "
                             f"G38.2 or G38.3 move (the ball touches the part at {_fmt(a)} mm, "
                             "radius)")  # fmt: skip
     hit = first_contact(a, b, pieces, r)
+    pre = (
+        0.0 if hit is None else _pretravel_of(pretravel, _touch(pieces, hit, a + hit[0] * (b - a)))
+    )
     s_trip = None if hit is None else hit[0] + (noise + pre) / length
     if s_trip is not None and s_trip < 0.0:
         raise AnalysisError(f"{_where(prog, move)}: Probe is already tripped when starting "

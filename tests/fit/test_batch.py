@@ -167,7 +167,7 @@ def test_failures_are_reported_with_the_loops_message(study_probe):
     with pytest.raises(AnalysisError) as exc:
         from piecs_bayes.fit import fit_profile
 
-        fit_profile(study.profile, probe.feature[on][mask], pts[mask], **kw)
+        fit_profile(study.profile, probe.feature[on][mask], pts[mask], part="part07", **kw)
     assert batch.part_error("part07") == str(exc.value)
     assert "1 failed" in repr(batch) and "NONFINITE" in repr(batch)
 

@@ -31,7 +31,7 @@ def test_known_lobing_is_found_within_3u():
     every coefficient within 3 u of the truth (five data sets)."""
     worst = 0.0
     for seed in range(5):
-        sim = simulate_calibration(seed=seed)
+        sim = simulate_calibration(seed=seed, directions="full")
         cal = _fit(sim)
         assert cal.orders == (2, 3) and cal.dof == 24 - 7 and cal.n_points == 24
         z = (cal.coefficients - sim["coefficients"]) / np.sqrt(np.diag(cal.cov))
@@ -184,7 +184,7 @@ def test_orders_the_directions_cannot_separate_are_refused():
 
 
 def test_bayes_agrees_with_least_squares():
-    sim = simulate_calibration(seed=2)
+    sim = simulate_calibration(seed=2, directions="full")
     lsq = _fit(sim, loss="linear", sigma_known=True)
     bay = _fit(sim, method="bayes", sigma_known=True,
                sampling=replace(CALIBRATION_SAMPLING, nsteps=4000, seed=1))  # fmt: skip

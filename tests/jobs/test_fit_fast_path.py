@@ -99,6 +99,38 @@ def test_a_fit_that_fails_raises_the_loops_error():
     assert fast.value.result.status == loop.value.result.status
 
 
+def test_a_three_point_line_with_one_point_down_weighted_is_refused_with_the_reason():
+    """`[fit] min_points_line = 3` (the default) and a chip of 25 um under the middle
+    point of face_end's first three: the robust fit keeps about 2.1 effective points
+    for the line's 2 parameters, no residual to judge the points by. Both paths refuse
+    with one message naming the feature, the part, the file and the point's line,
+    residual and weight, and the ways out; with every point kept (method lsq) the
+    same data fit, the chip's residual the largest."""
+    study = load_study(DEMO)
+    probe = load_probe_data(study)
+    rows = np.flatnonzero(probe.feature == "face_end")
+    keep = ~np.isin(np.arange(len(probe)), rows[3:])
+    pts = probe.points.copy()
+    pts[rows[1], 1] += 0.025  # Z, along the face's outward normal
+    three = replace(probe, points=pts).select(keep)
+    with pytest.raises(AnalysisError) as fast:
+        fit_study(study, three)
+    with pytest.raises(AnalysisError) as loop:
+        _loop(study, three, "robust")
+    msg = str(fast.value)
+    assert msg == str(loop.value)
+    line = int(probe.lines[rows[1]])
+    assert msg.startswith("feature 'face_end', part 'probe_part01', probe file ")
+    assert "effective points of 3 for 2 parameters" in msg
+    assert f"down-weighted: line {line} (residual +2" in msg, msg
+    assert "[fit] min_points_line" in msg and 'method = "lsq"' in msg
+    eff = float(msg.split("keeps ")[1].split(" ")[0])
+    assert 2.0 < eff < 3.0
+    plain = fit_study(study, three, method="lsq")["face_end"]
+    assert plain.result.converged and plain.outliers.size == 0
+    assert np.argmax(np.abs(plain.residuals)) == 1 and abs(plain.residuals[1]) > 0.005
+
+
 def test_input_errors_are_the_loops():
     study = load_study(DEMO)
     probe = load_probe_data(study)

@@ -19,6 +19,7 @@ from piecs_bayes.gcode import GaugingOptions, gauging_program
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import plan_study, study_from_program
 from piecs_bayes.simulate import read_truth, simulate_gauge
+from piecs_bayes.simulate._contact import contact_direction, truth_pieces
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "data" / "demo" / "study.toml"
@@ -135,7 +136,10 @@ def test_the_demo_truth_shifts_the_centres_by_the_deviation(cases):
         assert t.centre[0] == pytest.approx(want, abs=1e-8)
 
 
-def test_repeatability_and_pretravel_along_the_move(cases):
+def test_repeatability_along_the_move_and_pretravel_at_the_contact_normal(cases):
+    """The trip: the contact plus the repeatability's draw and the pretravel along the
+    move; a lobing pretravel is a function of the contact normal's angle (the touched
+    surface's, here up to a few mrad from the move's on the deviated part)."""
     study, truth = cases["demo"]
     text = plan_program(plan_study(study, points=3))
     exact = simulate_gauge(text, study, truth, repeatability=0.0, seed=0)
@@ -145,12 +149,17 @@ def test_repeatability_and_pretravel_along_the_move(cases):
     draws = np.random.default_rng(11).normal(0.0, 1.0, len(run.trips)) * 0.002
     lobes = lambda ang: 0.003 * math.cos(3 * ang)  # noqa: E731
     pre = simulate_gauge(text, study, truth, repeatability=0.002, seed=11, pretravel=lobes)
+    pieces = {p.feature: p for p in truth_pieces(study.profile, read_truth(truth, study.profile))}
+    turns = []
     for t0, t1, t2, k in zip(exact.trips, run.trips, pre.trips, draws, strict=True):
         u = np.subtract(t0.move.target, t0.move.start)
         u /= np.linalg.norm(u)
         np.testing.assert_allclose(t1.centre, np.add(t0.contact, k * u), atol=1e-12)
-        extra = k + lobes(math.atan2(u[0], u[1]))
+        d = contact_direction(pieces[t0.feature], t0.contact)
+        turns.append(math.acos(min(1.0, float(d @ u))))
+        extra = k + lobes(math.atan2(d[0], d[1]))
         np.testing.assert_allclose(t2.centre, np.add(t0.contact, extra * u), atol=1e-12)
+    assert 1e-5 < max(turns) < 0.02
     const = simulate_gauge(text, study, truth, repeatability=0.0, seed=0, pretravel=0.004)
     assert all(t.pretravel == 0.004 for t in const.trips)
 
