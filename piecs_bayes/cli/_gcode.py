@@ -4,8 +4,10 @@
   writes an equivalent program with G41/G42/G40 resolved into the controlled
   point's path (lines outside compensation byte-identical).
 - ``gcode check IN [--tool-table FILE] [--rs274]`` reads a program and prints
-  what was understood: modes, moves, compensation runs; with ``--rs274`` it
-  also compares the compensated path with LinuxCNC's ``rs274``.
+  what was understood: modes, moves, compensation runs and the side of the material
+  each run's moves in air say (a warning where they do not tell it, or put the nose
+  on the material side); with ``--rs274`` it also compares the compensated path with
+  LinuxCNC's ``rs274``.
 
 Errors: bad input exits 2, a gouge (analysis) exits 1 (mapped by ``cli.main``).
 """
@@ -56,8 +58,9 @@ def register(subparsers) -> None:
         choices=("auto", "external", "internal", "unchecked"),
         default="auto",
         help="where the material is, to refuse G41/G42 on the side that cuts into the part: "
-        "'external' (OD), 'internal' (bore), 'auto' (from where the tool approaches; "
-        "default) or 'unchecked'",
+        "'external' (OD), 'internal' (bore), 'auto' (default: the moves in air around each "
+        "compensated run say it, its entry, exit and rapids; a run they do not tell is "
+        "refused) or 'unchecked'",
     )
     _common(n)
     n.set_defaults(func=cmd_nose_comp)
@@ -187,12 +190,31 @@ def cmd_check(args, console) -> int:
             f"  {m.line:5d} {m.kind:5s} to (x={x:.4f}, z={z:.4f}) mm radius{centre}{comp}"
             f"  ({st.units}, {'diameter' if st.diameter else 'radius'} mode)"
         )
+    _say_sides(program, console)
     if any(m.comp is not None for m in program.moves):
         path = compensated_path(program, tool_table=tools, nose_radius=args.nose_radius)
         console.say(f"compensated path: {len(path)} moves of the controlled point")
     if args.rs274:
         return _compare_rs274(args, program, tools, console, nose_compensate)
     return 0
+
+
+def _say_sides(program, console) -> None:
+    """The material side of each compensation run, as the moves in air say it; a
+    warning for a run that `nose-comp --kind auto` refuses."""
+    import warnings
+
+    from ..gcode import MaterialSideWarning, comp_sides, side_error
+
+    for run in comp_sides(program):
+        console.say(f"  material side: {run.summary(program)}")
+        err = side_error(run, program)
+        if err is not None:
+            warnings.warn(
+                f"gcode nose-comp --kind auto refuses this run: {err}",
+                MaterialSideWarning,
+                stacklevel=1,
+            )
 
 
 def _line_list(lines, most: int = 12) -> str:

@@ -1,6 +1,7 @@
 """Part programs (G-code; LinuxCNC, Fanuc, Haas and Okuma dialects): lossless lexing,
 control flow and parameters, modal state, tool tables,
-tool-nose compensation (G41/G42), the adjusted finish-cut program (with its traceability
+tool-nose compensation (G41/G42) and the material side of each run (from the moves in
+air), the adjusted finish-cut program (with its traceability
 comment block), the finish contour (a study's profile from the program), the tool that
 cuts the finish pass, canned cycles (G70/G71/G72/G73 expanded into the control's
 moves), and the rs274 bridge.
@@ -55,6 +56,11 @@ from ._lexer import Word as Word
 from ._lexer import edit_line as edit_line
 from ._lexer import format_number as format_number
 from ._lexer import lex_gcode as lex_gcode
+from ._material_side import AirWitness as AirWitness
+from ._material_side import MaterialSideWarning as MaterialSideWarning
+from ._material_side import RunSide as RunSide
+from ._material_side import comp_sides as comp_sides
+from ._material_side import side_error as side_error
 from ._nosecomp import NoseCompResult as NoseCompResult
 from ._nosecomp import PathMove as PathMove
 from ._nosecomp import compensated_path as compensated_path

@@ -8,7 +8,7 @@ orientations). [`compensated_path`][] gives the controlled point's moves
 what LinuxCNC does) or `corner="extend"` (the 1969 bisector rule); a gouge or a
 LinuxCNC quirk the rule cannot follow raises `AnalysisError` naming the block.
 [`nose_compensate`][] rewrites the program without compensation (lines outside it
-byte-identical) and refuses G41/G42 on the material side (`infer_kind`,
+byte-identical) and refuses G41/G42 on the material side (`check_auto_sides`,
 `check_comp_sides`); [`correct_radius_error`][] corrects an already
 compensated path for a nose radius that differs from plan.
 
@@ -645,84 +645,6 @@ def axial_air(kind: str):
     return air
 
 
-def _axial_move(m) -> bool:
-    return not m.is_arc and abs(m.end[1] - m.start[1]) > 2.0 * abs(m.end[0] - m.start[0])
-
-
-def _beside(p, run) -> str | None:
-    """Where an air point `p` lies against the run's contour at its own Z: "external"
-    above it, "internal" below, None outside the contour's Z span (in front of or
-    behind the part, where the air surrounds both an OD and a bore) or within it."""
-    z_lo = min(min(n.start[1], n.end[1]) for n in run)
-    z_hi = max(max(n.start[1], n.end[1]) for n in run)
-    eps = 1e-6 * max(1.0, abs(z_lo), abs(z_hi))
-    if not z_lo + eps < p[1] < z_hi - eps:
-        return None
-    xs = []
-    for n in run:  # the contour's X at p's Z (chords of arcs)
-        (x0, z0), (x1, z1) = n.start, n.end
-        if min(z0, z1) - eps <= p[1] <= max(z0, z1) + eps:
-            xs += [x0, x1] if abs(z1 - z0) <= eps else [x0 + (x1 - x0) * (p[1] - z0) / (z1 - z0)]
-    if xs and p[0] > max(xs) + eps:
-        return "external"
-    if xs and p[0] < min(xs) - eps:
-        return "internal"
-    return None
-
-
-def _nose_side(run) -> str | None:
-    """The kind the run's G41/G42 side says: the nose is in the air, above an OD contour
-    and below a bore; each axial move votes by its length (None on a tie)."""
-    length = {"external": 0.0, "internal": 0.0}
-    for n in run:
-        if not _axial_move(n):
-            continue
-        side = n.comp.side
-        if n.comp.diameter_mm is not None and n.comp.diameter_mm < 0:
-            side = "left" if side == "right" else "right"
-        dz = n.end[1] - n.start[1]
-        nose_up = (dz > 0) == (side == "left")  # left of +Z travel is +X (z right, x up)
-        length["external" if nose_up else "internal"] += abs(dz)
-    if length["external"] == length["internal"]:
-        return None
-    return max(length, key=length.get)
-
-
-def infer_kind(program) -> str | None:
-    """``"external"``/``"internal"`` for a program's compensation runs, or None.
-
-    The tool is in the air, the material beyond the contour. First, where the tool
-    comes from and goes to: the start of a run's entry move and the end of its
-    departure move, where such a point lies beside the contour (within its Z span)
-    above it (an OD) or below it (a bore). A point in front of the part or behind it
-    says nothing: air surrounds both there, so a bore entered from above the face and
-    left behind the part reads like an OD. A run with no such point is read from its
-    G41/G42 side and the travel direction of its axial moves (nose above the contour
-    on the air side of an OD, below it in a bore; the majority of their length), so
-    that `check_comp_sides` still refuses a move whose side contradicts the rest. None
-    unless every run agrees.
-    """
-    moves = list(program.moves)
-    votes = set()
-    for i, m in enumerate(moves):
-        if not (m.entry and m.comp is not None):
-            continue
-        run = []
-        for n in moves[i + 1 :]:
-            if n.comp is None:
-                break
-            run.append(n)
-        if not any(_axial_move(n) for n in run):
-            continue
-        j = i + 1 + len(run)
-        points = [m.start] + ([moves[j].end] if j < len(moves) else [])
-        seen = {k for k in (_beside(p, run) for p in points) if k is not None}
-        if not seen:
-            seen = {k for k in (_nose_side(run),) if k is not None}
-        votes |= seen
-    return votes.pop() if len(votes) == 1 else None
-
-
 def check_comp_sides(program, air) -> None:
     """Refuse G41/G42 on the side that cuts into the material.
 
@@ -731,11 +653,11 @@ def check_comp_sides(program, air) -> None:
     of the air side of a programmed straight move (e.g. the outward normal of the
     profile feature it cuts, or `axial_air(kind)`), or None where it cannot say.
     A compensated move whose nose side points into the material is an `InputError`
-    naming its line. (LinuxCNC's rs274 runs such a program: it judges gouges, not
-    sides.)
+    naming its line; a rapid cuts nothing and is not judged. (LinuxCNC's rs274 runs
+    such a program: it judges gouges, not sides.)
     """
     for m in program.moves:
-        if m.comp is None or m.entry or m.is_arc or m.start == m.end:
+        if m.comp is None or m.entry or m.is_arc or m.kind == "rapid" or m.start == m.end:
             continue
         n_air = air(m)
         if n_air is None:
@@ -755,6 +677,24 @@ def check_comp_sides(program, air) -> None:
                 line=m.line,
                 value=m.comp.code,
             )
+
+
+def check_auto_sides(program) -> None:
+    """Refuse a run whose G41/G42 the moves in air contradict or do not confirm
+    (`comp_sides`, `side_error`), then judge each compensated move of a run by the
+    side they say is air (`check_comp_sides`), as with a `kind` given. `program` is
+    the program as read (its canned cycles' own moves are part of the evidence)."""
+    from ._contour import contour_view
+    from ._material_side import comp_sides, run_air, side_error
+
+    airs = {}
+    for run in comp_sides(program):
+        err = side_error(run, program)
+        if err is not None:
+            raise err
+        airs[run.comp] = run_air(run)
+    blocks = contour_view(program)
+    check_comp_sides(blocks, lambda m: airs[m.comp](m) if m.comp in airs else None)
 
 
 def compensated_path(
@@ -842,18 +782,18 @@ def nose_compensate(
     Lines outside compensation stay byte-identical; compensated blocks are
     rewritten (their other words and comments kept) with the controlled
     point's moves, extra corner arcs on lines of their own. Arguments as for
-    :func:`compensated_path`; `kind` (``"external"``, ``"internal"``, ``"auto"``:
-    `infer_kind`, or None: not checked) says where the material is, and a G41/G42
+    :func:`compensated_path`; `kind` says where the material is: ``"external"``,
+    ``"internal"``, ``"auto"`` (each run's moves in air say it, `comp_sides`: a run
+    they do not tell is refused, naming ``--kind``) or None (not checked); a G41/G42
     on the material side is refused (`check_comp_sides`).
     """
     from ._contour import contour_view
     from ._writer import write_path_program
 
-    blocks = contour_view(program)  # a cycle's sides are its contour's, not its passes'
     if kind == "auto":
-        kind = infer_kind(blocks)
-    if kind is not None:
-        check_comp_sides(blocks, axial_air(kind))
+        check_auto_sides(program)
+    elif kind is not None:  # a cycle's sides are its contour's, not its passes'
+        check_comp_sides(contour_view(program), axial_air(kind))
     path = compensated_path(
         program, corner=corner, tool_table=tool_table, nose_radius=nose_radius, start=start
     )

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _corpus_sides import corpus_kind
 
 from piecs_bayes.errors import AnalysisError, InputError
 from piecs_bayes.gcode import (
@@ -298,7 +299,7 @@ def test_tool_table_resolution(tools):
 def test_output_program_has_no_compensation_and_keeps_other_lines(tools):
     for path in sorted(DATA.glob("*.ngc")):
         program = read_gcode(path)
-        result = nose_compensate(program, tool_table=tools)
+        result = nose_compensate(program, tool_table=tools, kind=corpus_kind(path))
         again = parse_gcode(result.text, name="out")
         assert all(m.comp is None for m in again.moves), path.name
         codes = {w.code for ln in again.lines for w in ln.words if w.letter == "G"}
@@ -329,23 +330,22 @@ def tools():
     return read_tool_table(DATA / "tools.tbl", units="in")
 
 
-def test_infer_kind_reads_a_bore_entered_in_front_and_left_behind(tools):
-    """A ring's bore entered from above the face and left behind the part upward:
-    entry and exit lie above every axial move, which read as an OD and refused the
-    correct G41 ('use G42'); air surrounds both ends, so the nose side decides. Every
-    corpus program named for an OD or a bore is inferred as one, and a move whose side
-    contradicts the rest of its run is still refused."""
-    from piecs_bayes.gcode._nosecomp import infer_kind
-
+def test_a_ring_bore_left_over_the_ring_needs_its_kind_said(tools):
+    """A ring's bore entered from above the face, left behind the ring and back over
+    it (issue 29 accepted its G41 from the word alone): the rapid back over the ring
+    passes where a bore's wall would be, as far as the program says, so `--kind auto`
+    refuses it naming that move and `--kind`; said to be internal it is resolved, and a
+    move whose side contradicts the rest of its run is still refused."""
     ring = read_gcode(DATA / "29_bore_ring_in_front_and_behind_t2.ngc")
-    assert infer_kind(ring) == "internal"
-    nose_compensate(ring, tool_table=tools)  # not refused
-    for path in sorted(DATA.glob("*.ngc")):
-        words = path.stem.split("_")
-        want = "internal" if "bore" in words else "external" if "od" in words else None
-        if want is not None:
-            assert infer_kind(read_gcode(path)) == want, path.name
+    with pytest.raises(InputError) as exc:
+        nose_compensate(ring, tool_table=tools)
+    msg = str(exc.value)
+    assert msg.startswith(f"{ring.name}:6: G41 (line 6) puts the tool nose left of travel")
+    assert "the exit move (line 10) passes above the contour at X40.0000 Z-12.0000" in msg
+    assert "use G42" in msg and "--kind internal" in msg
+    result = nose_compensate(ring, tool_table=tools, kind="internal")
+    assert result.changed_lines == (6, 7, 8, 9, 10)
     text = (DATA / "29_bore_ring_in_front_and_behind_t2.ngc").read_text()
     back = text.replace("G1 X20.000 Z-12.000\n", "G1 X20.000 Z-12.000\nG1 X20.000 Z-11.000\n")
     with pytest.raises(InputError, match=r"G41 \(line 6\) .* contour at line 10: .*use G42"):
-        nose_compensate(parse_gcode(back, name="back.ngc"), tool_table=tools)
+        nose_compensate(parse_gcode(back, name="back.ngc"), tool_table=tools, kind="internal")

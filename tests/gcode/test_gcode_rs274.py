@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _corpus_sides import corpus_kind
 
 from piecs_bayes.errors import AnalysisError
 from piecs_bayes.gcode import (
@@ -69,7 +70,7 @@ def test_nose_comp_output_matches_rs274(path, tools):
     program = read_gcode(path)
     reference = run_rs274(path, tool_table=TABLE)
     assert reference.error is None, reference.error
-    result = nose_compensate(program, tool_table=tools)
+    result = nose_compensate(program, tool_table=tools, kind=corpus_kind(path))
     ours = run_rs274(result.text, tool_table=TABLE)
     assert ours.error is None, ours.error
     _compare(reference.moves, ours.moves, _tolerance(program))
@@ -120,7 +121,7 @@ def test_gouges_raise_where_linuxcnc_raises(path, tools):
 def test_extend_outputs_run_in_rs274(path, tools):
     program = read_gcode(path)
     try:
-        result = nose_compensate(program, tool_table=tools, corner="extend")
+        result = nose_compensate(program, tool_table=tools, corner="extend", kind=corpus_kind(path))
     except AnalysisError as exc:
         assert "straight entry" in str(exc)  # the extend rule wants a straight entry move
         return
