@@ -11,6 +11,7 @@ points that folder's part was probed at. Writes ``plan.json``, the gauging progr
 from __future__ import annotations
 
 import argparse
+import warnings
 from pathlib import Path
 
 from . import _types as T
@@ -46,6 +47,12 @@ def register(subparsers) -> None:
         help="plan the extra points of the 'measure more' verdicts in FIT_DIR/decisions.json",
     )
     p.add_argument("--controller", choices=("linuxcnc", "fanuc"), default=None)
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="refuse a plan that leaves a feature out (default: plan the features the probe "
+        "reaches and list the others as not measured, with the settings that reach them)",
+    )
     p.add_argument("--out", type=Path, default=Path("plan"), help="output folder (default plan)")
     p.add_argument("--quiet", "-q", action="store_true", help="print only errors")
     p.set_defaults(func=cmd_plan)
@@ -64,7 +71,10 @@ def cmd_plan(args, console) -> int:
             return 0
         plan = plan_more(study, more, probed, controller=args.controller)
     else:
-        plan = plan_study(study, points=args.points, ratio=args.ratio, controller=args.controller)
+        plan = plan_study(
+            study, points=args.points, ratio=args.ratio, controller=args.controller,
+            strict=args.strict,
+        )  # fmt: skip
     written = write_plan(plan, args.out, protect=[args.study])
     ratio = plan.settings.ratio
     console.say(
@@ -77,6 +87,13 @@ def cmd_plan(args, console) -> int:
         d, u = f.designed, f.uniform
         console.say(
             f"  {f.feature:<12} {d.n:>3} {d.u * 1e3:>7.2f} {u.u * 1e3:>8.2f} {d.ratio:>5.1f}:1"
+        )
+    for u in plan.unreachable:
+        console.say(f"  {u.feature:<12} {'-':>3} not measured (the probe cannot reach it)")
+    for u in plan.unreachable:  # on stderr, --quiet or not
+        warnings.warn(
+            f"{args.study}: not measured: {u.message} (--strict makes this an error)",
+            stacklevel=1,
         )
     for p in written:
         console.say(f"wrote {p}")

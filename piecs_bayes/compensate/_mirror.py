@@ -227,6 +227,28 @@ class AdjustedPath:
         )
 
 
+JOIN_TOLERANCE = 1e-4
+"""mm: how far apart in radius a compensated arc's rebuilt end vertices may lie. A
+join of an arc with a tangent neighbour is ill-conditioned (the intersection's
+discriminant is near zero): its vertex comes a few nm off the circle, and the centre is
+moved onto the vertices' perpendicular bisector (the vertices, shared with the
+neighbours, stay where they are)."""
+
+
+def _equidistant_centre(fid: str, p0, p1, centre):
+    """`centre` projected onto the perpendicular bisector of `p0`-`p1`, or an
+    `AnalysisError` when the vertices' distances differ by more than `JOIN_TOLERANCE`."""
+    c, a, b = np.asarray(centre), np.asarray(p0), np.asarray(p1)
+    d0, d1 = float(np.hypot(*(a - c))), float(np.hypot(*(b - c)))
+    if abs(d0 - d1) > JOIN_TOLERANCE:
+        raise AnalysisError(
+            f"compensated arc {fid!r}: its end vertices lie {abs(d0 - d1) * 1e3:.3f} um apart "
+            f"in radius ({d0:.6f} and {d1:.6f} mm): the neighbours' corrections do not meet it"
+        )
+    t = (b - a) / float(np.hypot(*(b - a)))
+    return tuple(map(float, c - float((c - 0.5 * (a + b)) @ t) * t))
+
+
 def adjusted_path(profile: Profile, deviations, *, gain=1.0, max_correction: float | None = None):
     """Mirror the fitted deviations and rebuild the contour.
 
@@ -256,7 +278,7 @@ def adjusted_path(profile: Profile, deviations, *, gain=1.0, max_correction: flo
     for i, f in enumerate(profile.features):
         p0, p1 = tuple(map(float, verts[i])), tuple(map(float, verts[i + 1]))
         if isinstance(f, Arc):
-            c = tuple(map(float, centres[i]))
+            c = _equidistant_centre(f.id, p0, p1, centres[i])
             feats.append(Arc(f.id, p0, p1, c, f.ccw, f.side, f.tolerance))
         else:
             feats.append(Line(f.id, p0, p1, f.side, f.tolerance))

@@ -3,10 +3,16 @@
 from .. import _config  # noqa: F401  (float64 before any JAX array)
 from ._clearance import CHORD_ERROR_MM as CHORD_ERROR_MM
 from ._clearance import ball_centres as ball_centres
+from ._clearance import end_margins as end_margins
 from ._clearance import feature_polyline as feature_polyline
+from ._clearance import junction_points as junction_points
 from ._clearance import path_distance as path_distance
 from ._clearance import point_distance as point_distance
 from ._clearance import probe_window as probe_window
+from ._clearance import rising_distance as rising_distance
+from ._contact import Contact as Contact
+from ._contact import first_contact as first_contact
+from ._contact import nearest_point as nearest_point
 from ._curves import Arc as Arc
 from ._curves import Feature as Feature
 from ._curves import Line as Line
@@ -27,6 +33,7 @@ from ._iso2768 import iso2768_tolerance as iso2768_tolerance
 from ._profile import Profile as Profile
 from ._profile import ProfileError as ProfileError
 from ._profile import make_feature as make_feature
+from ._profile import profile_kind as profile_kind
 from ._profile import profile_side as profile_side
 from ._transform import MachineTransform as MachineTransform
 from ._transform import ball_correction as ball_correction

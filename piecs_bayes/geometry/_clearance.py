@@ -1,17 +1,17 @@
 r"""Where a probe ball can touch a turned profile, and how far a path keeps from it.
 
-A ball of radius $r$ touches a feature at a nominal contact point $q$ with its centre at
-$c = q + r\,n$ ([`ball_centres`][]). [`probe_window`][] gives the usable fractions
-`(t0, t1)` of a feature (the longest run of them; None when the ball cannot touch it
-anywhere): the ball at contact keeps `end_clearance` from every other feature and does
-not cut into its own, the point lies $r$ + `end_clearance` from a sharp or free end and
-`end_clearance` from a tangent junction, and (with `standoff`) the probe move's start
-keeps as far from every feature. [`point_distance`][] and [`path_distance`][] measure
-how far a point or a straight move keeps from a profile's polylines
-([`feature_polyline`][]): exact between segments, arcs sampled with a chord error under
-0.1 µm (`CHORD_ERROR_MM`).
+A ball of radius $r$ touches a feature at a nominal contact point $q$, centre
+$c = q + r\,n$ ([`ball_centres`][]), coming along $-n$ from $s = c + \text{standoff}\,n$.
+[`probe_window`][] gives the usable fractions `(t0, t1)` of a feature (None: none):
+the ball does not cut into its feature; along its move it keeps `end_clearance` from
+the parts of other features above the tangent at $q$ ([`rising_distance`][]; the rest
+cannot be touched first) and from its feature's junction points ([`junction_points`][]);
+the point keeps `end_clearance` along the feature from a junction, $r$ more from a free
+end ([`end_margins`][]); the ball at $s$ keeps `standoff` from every feature. Checked
+against the exact contact (`first_contact`). [`point_distance`][], [`path_distance`][]:
+distances to polylines ([`feature_polyline`][]), arcs within 0.1 µm (`CHORD_ERROR_MM`).
 
-The rules: docs/models/gauging.md, "Where a ball can touch a profile".
+The rules and their reasons: docs/models/gauging.md, "Where a ball can touch a profile".
 """
 
 from __future__ import annotations
@@ -99,29 +99,90 @@ def path_distance(p0, p1, polyline: np.ndarray) -> float:
     return float(min(ends, back))
 
 
+def _segment_gaps(p0, p1, a, b) -> np.ndarray:
+    """Least distances `(k, m)` between the segments `p0[k]`-`p1[k]` and `a[k, m]`-`b[k, m]`
+    (0 where they cross)."""
+
+    def to_segment(p, s0, s1):
+        d = s1 - s0
+        dd = np.maximum(np.sum(d * d, axis=-1), 1e-300)
+        u = np.clip(np.sum((p - s0) * d, axis=-1) / dd, 0.0, 1.0)
+        return np.linalg.norm(p - s0 - u[..., None] * d, axis=-1)
+
+    q0, q1 = p0[:, None, :], p1[:, None, :]
+    r, s = q1 - q0, b - a
+    den = _cross(r, s)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t, u = _cross(a - q0, s) / den, _cross(a - q0, r) / den
+    crossing = (den != 0.0) & (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+    ends = np.minimum(to_segment(q0, a, b), to_segment(q1, a, b))
+    back = np.minimum(to_segment(a, q0, q1), to_segment(b, q0, q1))
+    return np.where(crossing, 0.0, np.minimum(ends, back))
+
+
+def rising_distance(q, n, start, centre, polyline: np.ndarray) -> np.ndarray:
+    """Least distance from each probe move `start[k]`-`centre[k]` to the part of
+    `polyline` above the tangent at contact `q[k]` (outward normal `n[k]`): the only
+    part the ball can touch before `q[k]` (inf where there is none)."""
+    q, n = np.atleast_2d(q), np.atleast_2d(n)
+    a, b = polyline[None, :-1], polyline[None, 1:]
+    ha = np.sum((a - q[:, None]) * n[:, None], axis=-1)
+    hb = np.sum((b - q[:, None]) * n[:, None], axis=-1)
+    rise = hb - ha
+    frac = np.divide(_ABOVE - ha, rise, out=np.zeros_like(rise), where=rise != 0.0)
+    cut = a + frac[..., None] * (b - a)
+    a2 = np.where((ha > _ABOVE)[..., None], a, cut)
+    b2 = np.where((hb > _ABOVE)[..., None], b, cut)
+    gap = _segment_gaps(np.atleast_2d(start), np.atleast_2d(centre), a2, b2)
+    return np.min(np.where((ha > _ABOVE) | (hb > _ABOVE), gap, np.inf), axis=1)
+
+
+#: mm: a point of another feature this far above the tangent at contact or less is not
+#: above it (the edge a convex corner shares with the probed feature)
+_ABOVE = 1e-9
+
+
+def end_margins(profile, index: int, ball_radius: float, end_clearance: float):
+    """`(start, end)` distances (mm, along the feature) that a contact point keeps from
+    the ends of feature `index`: `end_clearance` from a junction (sharp or tangent),
+    the ball radius more from a free end of the profile (what lies beyond is not
+    drawn)."""
+    last = len(profile.features) - 1
+    return tuple(
+        end_clearance + (ball_radius if free else 0.0) for free in (index == 0, index == last)
+    )
+
+
+def junction_points(profile, index: int) -> list[np.ndarray]:
+    """The ends of feature `index` where another feature joins it: an edge at a sharp
+    junction (a burr stands there), a tangent point at a smooth one (a deviated
+    neighbour steps there)."""
+    f, last = profile.features[index], len(profile.features) - 1
+    ends = [f.p0] if index > 0 else []
+    ends += [f.p1] if index < last else []
+    return [np.asarray(e, dtype=float) for e in ends]
+
+
 def _usable(profile, index: int, t, ball_radius, end_clearance, standoff, polys):
     """Which fractions `t` of feature `index` are usable contact points (module doc)."""
     f = profile.features[index]
     t = np.atleast_1d(np.asarray(t, dtype=float))
-    _, n, c = ball_centres(f, t, ball_radius)
+    q, n, c = ball_centres(f, t, ball_radius)
     s = c + standoff * n
-    ok = np.ones(t.size, dtype=bool)
     slack = 2.0 * CHORD_ERROR_MM  # the chords of a concave arc lie inside it
+    ok = point_distance(c, polys[index]) >= ball_radius - slack  # not cutting into its own
     for j, poly in enumerate(polys):
-        d = point_distance(c, poly)
-        ok &= d >= (ball_radius - slack if j == index else ball_radius + end_clearance)
+        if j != index:
+            ok &= rising_distance(q, n, s, c, poly) >= ball_radius + end_clearance - slack
         if standoff > 0.0:
             ok &= point_distance(s, poly) >= ball_radius + standoff - slack
+    for edge in junction_points(profile, index):
+        gap = _segment_gaps(s, c, edge[None, None], edge[None, None])[:, 0]
+        ok &= gap >= ball_radius + end_clearance - slack
     along = t * f.length
-    last = len(profile.features) - 1
-    start_kind = profile.junctions[index - 1] if index > 0 else "free"
-    end_kind = profile.junctions[index] if index < last else "free"
-
-    def margin(kind):
-        return end_clearance if kind == "tangent" else ball_radius + end_clearance
-
-    ok &= along >= margin(start_kind) - 1e-12
-    ok &= f.length - along >= margin(end_kind) - 1e-12
+    lo, hi = end_margins(profile, index, ball_radius, end_clearance)
+    ok &= along >= lo - 1e-12
+    ok &= f.length - along >= hi - 1e-12
     return ok
 
 
@@ -130,11 +191,12 @@ def probe_window(
 ):
     """The usable fractions `(t0, t1)` of feature `index` of `profile` (see the module
     docstring), or None when the ball cannot touch it anywhere. With `standoff` > 0 the
-    probe move's start, `standoff` beyond the ball at contact along the normal, must
-    also keep `standoff` from every feature (a concave corner narrows the window).
+    probe move starts `standoff` beyond the ball at contact along the normal, and the
+    ball there keeps `standoff` from every feature (a concave corner narrows the
+    window).
 
-    The longest run of usable fractions on a grid of 257, its edges then found by
-    bisection to 1e-6 of the feature."""
+    The longest run of usable fractions on a grid of 257, its edges then refined to
+    1e-8 of the feature."""
     polys = [feature_polyline(g) for g in profile.features]
 
     def usable(t):
@@ -150,9 +212,10 @@ def probe_window(
     lo_i, hi_i = int(starts[k]), int(stops[k])
 
     def edge(inside, outside):
-        for _ in range(20):
-            mid = 0.5 * (inside + outside)
-            inside, outside = (mid, outside) if usable(mid)[0] else (inside, mid)
+        for _ in range(4):  # 32 steps a round: as 20 halvings, in 4 calls
+            ts = np.linspace(inside, outside, 33)
+            k = int(np.argmin(usable(ts)[1:])) + 1  # the first unusable one from inside
+            inside, outside = float(ts[k - 1]), float(ts[k])
         return inside
 
     t0 = float(t[lo_i]) if lo_i == 0 else edge(float(t[lo_i]), float(t[lo_i - 1]))

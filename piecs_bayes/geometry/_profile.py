@@ -68,6 +68,19 @@ def profile_side(chain: list[dict], internal: bool = False) -> int:
     return -1 if material_left else 1
 
 
+def profile_kind(profile) -> str:
+    """The study's declared `[profile] kind` of `profile`: ``"external"`` (a shaft:
+    material between the profile and the axis) or ``"internal"`` (a bore). Read back
+    from the side its features were built with (`profile_side`), so it holds for any
+    shape, a profile made mostly of faces too; not guessed from where the normals
+    point."""
+    specs = [
+        {"p0": f.p0, "p1": f.p1, **({"center": f.center, "ccw": f.ccw} if f.kind == "arc" else {})}
+        for f in profile.features
+    ]
+    return "external" if profile.features[0].side == profile_side(specs) else "internal"
+
+
 def _tangent(f: Feature, which: str) -> np.ndarray:
     """`f.tangent_at(which)` in NumPy (loading a study dispatches no JAX operation)."""
     if isinstance(f, Arc):

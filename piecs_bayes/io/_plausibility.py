@@ -23,7 +23,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import machine_to_part, profile_side
+from ..geometry import machine_to_part, profile_kind
 
 #: the smallest default distance limit (mm): a chip under the stylus (0.1-0.3 mm) is an
 #: outlier for the robust fit, not an error; setup mistakes move points by a ball
@@ -178,15 +178,6 @@ def drop_duplicates(probe, *, policy: str = "drop"):
     return probe.select(~dup)
 
 
-def _kind(profile) -> str:
-    """The profile's `[profile] kind`, from its features' side of the material."""
-    specs = [
-        {"p0": f.p0, "p1": f.p1, **({"center": f.center, "ccw": f.ccw} if f.kind == "arc" else {})}
-        for f in profile.features
-    ]
-    return "external" if profile.features[0].side == profile_side(specs) else "internal"
-
-
 def _as_written(point, x_mode: str, units: str) -> str:
     """A machine point (mm, radius X) as the probe file writes it."""
     k = 25.4 if units == "in" else 1.0
@@ -246,7 +237,7 @@ def check_probe_data(
     what = f"{_as_written(probe.points[i], x_mode, units)}: {what}"
     n_bad, n_part = int(bad[sel].sum()), int(sel.sum())
     if cause == _KIND_CAUSE and study_file is not None:
-        kind = _kind(profile)
+        kind = profile_kind(profile)
         other = "internal" if kind == "external" else "external"
         raise InputError(
             f"profile.kind: {kind!r} does not fit the probe data: the ball centres of part "

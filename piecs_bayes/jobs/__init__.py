@@ -82,6 +82,7 @@ _EXPORTS = {
     "feature_fractions": "_plan",
     "plan_more": "_plan",
     "plan_study": "_plan",
+    "UnreachableFeature": "_plan_reach",
     "calibrate_probe": "_probe_cal",
     "calibration_points": "_probe_cal",
     "parse_directions_option": "_probe_cal",

@@ -23,6 +23,9 @@ from ..io import rows_to_dataframe
 from ..uncertainty import Characteristic, feature_characteristic
 from ._options import decision_settings, source_sds
 
+#: the verdict a table's rows give a feature without probe points (no decision)
+NOT_MEASURED = "not measured"
+
 
 def characteristics(study, fit, *, at: str = "mid") -> dict[str, Characteristic]:
     """[`Characteristic`][]s of every fitted feature of `fit` (profile order), with the
@@ -67,7 +70,8 @@ class DecisionTable:
         return {d.feature: d.verdict for d in self.decisions}
 
     def rows(self) -> list[dict]:
-        """One flat row per feature (CSV / DataFrame)."""
+        """One flat row per feature (CSV / DataFrame); a feature without points gets
+        the verdict "not measured", no numbers and gain 0."""
         out = []
         for d, c in zip(self.decisions, self.estimates, strict=True):
             row = {"part": self.part or "", **d.as_row()}
@@ -75,6 +79,12 @@ class DecisionTable:
             row["at"] = c.at if c is not None else ""
             row["u_fit_mm"] = c.u_fit if c is not None else math.nan
             row["u_systematic_mm"] = c.u_systematic if c is not None else math.nan
+            out.append(row)
+        keys = list(out[0]) if out else ["part", "feature", "verdict", "gain", "reasons"]
+        for fid in self.unmeasured:
+            row = dict.fromkeys(keys)
+            row.update(part=self.part or "", feature=fid, verdict=NOT_MEASURED, gain=0.0)
+            row["reasons"] = "no probe point on this feature: no decision, left as drawn"
             out.append(row)
         return out
 
@@ -84,7 +94,10 @@ class DecisionTable:
         return rows_to_dataframe(self.rows())
 
     def __repr__(self) -> str:
-        verdicts = ", ".join(f"{d.feature} {d.verdict}" for d in self.decisions)
+        verdicts = ", ".join(
+            [f"{d.feature} {d.verdict}" for d in self.decisions]
+            + [f"{fid} {NOT_MEASURED}" for fid in self.unmeasured]
+        )
         return f"DecisionTable({self.study!r}, part {self.part or '-'}: {verdicts})"
 
 

@@ -373,6 +373,7 @@ def adjust_study_program(
     **Returns:** a ``ProgramAdjustment`` (``.text``, ``.diff``, ``.changes``).
     """
     from ..gcode import ToolPath, adjust_path_program, adjust_program, read_gcode, read_tool_table
+    from ..geometry import profile_kind
 
     if study.program is None:
         raise InputError(
@@ -384,7 +385,7 @@ def adjust_study_program(
             read_gcode(study.program, ps.dialect),
             study.profile,
             path.profile,
-            tool_path=ToolPath(ps.nose_radius, ps.path_tip, _kind(study.profile)),
+            tool_path=ToolPath(ps.nose_radius, ps.path_tip, profile_kind(study.profile)),
             max_correction_mm=study.compensation.max_correction,
             header=program_header(study, path.gain, created=created),
             output_name=output,
@@ -404,17 +405,6 @@ def adjust_study_program(
         header=program_header(study, path.gain, created=created),
         output_name=output,
     )
-
-
-def _kind(profile) -> str:
-    """``"external"`` or ``"internal"``: where the profile's outward normals point."""
-    from ..geometry import profile_side
-
-    specs = [
-        {"p0": f.p0, "p1": f.p1, **({"center": f.center, "ccw": f.ccw} if f.kind == "arc" else {})}
-        for f in profile.features
-    ]
-    return "external" if profile_side(specs) == profile.features[0].side else "internal"
 
 
 def program_header(study: Study, gain, *, created: str | None = None) -> tuple[str, ...]:

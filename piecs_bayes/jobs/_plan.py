@@ -4,13 +4,12 @@ moves, and what uncertainty it promises (`plan_study` -> [`ProbePlan`][]).
 [`plan_study`][] takes the study's `[plan]` settings: per feature the usable window of
 the ball (`geometry.probe_window`) and either the given count or the least count that
 reaches the tolerance-to-U ratio, placed by `uncertainty.design_fractions` with the
-prediction the decision will make ([`FeaturePlan`][]); per point the nominal contact,
-the ball centre, the approach and the probe move from its stand-off outside the stock
-to beyond the largest plausible deviation ([`PlannedPoint`][]); safe moves between
-stand-offs (straight where the ball keeps `clearance` from the stock, else by the
-retract line), the shortest order found (nearest neighbour, then 2-opt) and the
-predicted time. An undercut stand-off or an untouchable feature is refused naming it.
-[`plan_more`][] places the extra points a "measure more" verdict asks for.
+prediction the decision will make ([`FeaturePlan`][]); per point the contact, ball
+centre, approach and probe move ([`PlannedPoint`][]); safe moves between stand-offs,
+the shortest order found and the predicted time. A feature whose window cannot hold
+its least count is left out (`ProbePlan.unreachable`, `_plan_reach`: why, and the
+settings that reach it), or refused with `strict`; an undercut stand-off is refused
+naming it. [`plan_more`][] places the extra points a "measure more" verdict asks for.
 
 The plan: docs/models/gauging.md, "The probe plan".
 """
@@ -27,7 +26,7 @@ import numpy as np
 from ..errors import InputError
 from ..fit import DECLARED_DOF
 from ..fit.lsq import normal_variance_factor
-from ..geometry import CHORD_ERROR_MM, feature_polyline, path_distance, point_distance, probe_window
+from ..geometry import CHORD_ERROR_MM, feature_polyline, path_distance, point_distance
 from ..io import parse_fix
 from ..uncertainty import (
     DesignSettings,
@@ -39,6 +38,7 @@ from ..uncertainty import (
     uniform_fractions,
 )
 from ._options import source_sds
+from ._plan_reach import UnreachableFeature, reach, room
 
 
 @dataclass(frozen=True)
@@ -184,7 +184,9 @@ class FeaturePlan:
 class ProbePlan:
     """The study's probe plan: points in program order, the safe path between them
     (`path`: `(kind, end)` with kind `"rapid"` or `"probe"`, starting at `home`),
-    per-feature predictions, settings, and the predicted gauging time (s)."""
+    per-feature predictions, settings, the predicted gauging time (s), and the
+    features it leaves out (`unreachable`: not measured, each with why and the
+    settings that reach it)."""
 
     study: object
     points: tuple[PlannedPoint, ...]
@@ -195,6 +197,7 @@ class ProbePlan:
     dof: float
     time_s: float
     travel_mm: float
+    unreachable: tuple[UnreachableFeature, ...] = ()
 
     @property
     def n_points(self) -> int:
@@ -260,24 +263,28 @@ def _min_points(study, f) -> int:
     return max(int(least), f.nparams + EXTRA_POINTS)
 
 
-def _windows(study, s):
-    prof, r = study.profile, study.probe.ball_radius
-    out = {}
-    for i, f in enumerate(prof.features):
-        w = probe_window(prof, i, r, s.end_clearance, s.stock + s.clearance)
-        if w is not None and (w[1] - w[0]) * f.length < s.spacing:
-            w = None  # a point, or less than the spacing: no room for distinct points
-        if w is None:
-            raise InputError(
-                f"the probe ball (radius {r:g} mm) cannot touch feature {f.id!r} anywhere "
-                "keeping the end clearance and a clear approach: a groove or corner narrower "
-                "than the ball with stock and clearance, or a feature shorter than the "
-                "ball's margins",
-                file=str(study.path),
-                feature=f.id,
-            )
-        out[f.id] = w
-    return out
+def _reach(study, s):
+    """`(windows, unreachable)` of the plan (`_plan_reach.reach`) with the least counts."""
+    least = {f.id: _min_points(study, f) for f in study.profile.features}
+    windows, unreachable = reach(study, s, least)
+    if not windows:
+        raise InputError(
+            "no feature can be probed: " + "; ".join(u.message for u in unreachable),
+            file=str(study.path),
+            feature=unreachable[0].feature,
+        )
+    return windows, unreachable
+
+
+def _refuse_unreachable(study, unreachable) -> None:
+    """`strict`: a plan that leaves a feature out is an error naming each one."""
+    if unreachable:
+        raise InputError(
+            f"the plan would leave {len(unreachable)} feature(s) not measured (strict): "
+            + "; ".join(u.message for u in unreachable),
+            file=str(study.path),
+            feature=unreachable[0].feature,
+        )
 
 
 def _sigma_dof(study, counts: dict) -> float:
@@ -288,24 +295,32 @@ def _sigma_dof(study, counts: dict) -> float:
     return float(max(resid, 0) + prior) if resid + prior > 0 else float(DECLARED_DOF)
 
 
+def _room(f, s, windows) -> int:
+    """The most points the window of `f` holds at the spacing."""
+    return room(windows[f.id], f.length, s.spacing)
+
+
 def _feature_designs(study, s, windows, counts):
+    """`(plans, dof)` of the features with a window: `(feature, fractions, inside,
+    FeaturePlan)` each, by `counts` or, when None, by the ratio."""
     fixed = parse_fix(study.fit.fix)
+    planned = [f for f in study.profile.features if f.id in windows]
     if counts is None:  # the least counts for the ratio, at the dof of the least counts
-        least = {f.id: _min_points(study, f) for f in study.profile.features}
+        least = {f.id: _min_points(study, f) for f in planned}
         ds = _design_settings(study, _sigma_dof(study, least))
         ds = _with(ds, s)
         designs = {}
-        for f in study.profile.features:
+        for f in planned:
             designs[f.id] = points_for_ratio(
-                f, windows[f.id], ds, s.ratio, n_min=least[f.id], n_max=_MAX_POINTS,
-                fixed=fixed.get(f.id, ()),
+                f, windows[f.id], ds, s.ratio, n_min=least[f.id],
+                n_max=min(_MAX_POINTS, _room(f, s, windows)), fixed=fixed.get(f.id, ()),
             )  # fmt: skip
         counts = {fid: len(d[0]) for fid, d in designs.items()}
     else:
         designs = None
     ds = _with(_design_settings(study, _sigma_dof(study, counts)), s)
     plans = []
-    for f in study.profile.features:
+    for f in planned:
         fx = fixed.get(f.id, ())
         if designs is None or len(designs[f.id][0]) != counts[f.id]:
             ts, inside = design_fractions(f, counts[f.id], windows[f.id], ds, fixed=fx)
@@ -323,7 +338,22 @@ def _with(ds: DesignSettings, s: PlanSettings) -> DesignSettings:
     return replace(ds, inside_share=s.inside_share, spacing=s.spacing)
 
 
-def plan_study(study, *, points=None, ratio=None, controller=None, counts=None):
+def _fixed_counts(study, s, windows, counts):
+    """The counts asked for (`counts`, or `[plan] points` on every feature; None: by
+    the ratio) on the planned features: at least the fit's least points, at most what
+    the window holds at the spacing."""
+    if counts is None and s.points is not None:
+        counts = {f.id: int(s.points) for f in study.profile.features}
+    if counts is None:
+        return None
+    return {
+        f.id: min(max(int(counts.get(f.id, 0)), _min_points(study, f)), _room(f, s, windows))
+        for f in study.profile.features
+        if f.id in windows
+    }
+
+
+def plan_study(study, *, points=None, ratio=None, controller=None, counts=None, strict=False):
     """The [`ProbePlan`][] of `study` (module docstring).
 
     **Arguments:**
@@ -332,16 +362,18 @@ def plan_study(study, *, points=None, ratio=None, controller=None, counts=None):
       reach instead (default `[plan] ratio`, 4); `counts`: a count per feature id
       (overrides both); a count is at least the fit's least points for the feature
       (`[fit] min_points_line`/`min_points_arc`) and `EXTRA_POINTS` more than its
-      parameters (5 on a line, 6 on an arc: room for the robust fit);
+      parameters (5 on a line, 6 on an arc: room for the robust fit), and at most
+      what its window holds at `[plan] spacing`;
       `controller`: `"linuxcnc"` or `"fanuc"`.
+    - `strict`: refuse a plan that leaves a feature out (an `InputError` naming each
+      one, why, and the settings that reach it); by default such a feature is left
+      out and listed in `ProbePlan.unreachable`.
     """
     s = _settings(study, points, ratio, controller)
-    windows = _windows(study, s)
-    if counts is None and s.points is not None:
-        counts = {f.id: int(s.points) for f in study.profile.features}
-    if counts is not None:  # at least the fit's least points per feature
-        counts = {f.id: max(int(counts.get(f.id, 0)), _min_points(study, f))
-                  for f in study.profile.features}  # fmt: skip
+    windows, unreachable = _reach(study, s)
+    if strict:
+        _refuse_unreachable(study, unreachable)
+    counts = _fixed_counts(study, s, windows, counts)
     plans, dof = _feature_designs(study, s, windows, counts)
     raw = _points(study, s, plans)
     from ._plan_route import order_and_route
@@ -351,6 +383,7 @@ def plan_study(study, *, points=None, ratio=None, controller=None, counts=None):
     return ProbePlan(
         study=study, points=pts, features=tuple(p[3] for p in plans if p[3] is not None),
         home=home, path=path, settings=s, dof=dof, time_s=time_s, travel_mm=travel,
+        unreachable=unreachable,
     )  # fmt: skip
 
 
@@ -371,7 +404,7 @@ def plan_more(study, more: dict, probed: dict, *, controller=None):
     held fixed, to lower the characteristic's uncertainty most
     (`uncertainty.augment_fractions`). The predictions are for all points together."""
     s = _settings(study, None, None, controller)
-    windows = _windows(study, s)
+    windows, unreachable = _reach(study, s)
     counts = {}
     for fid in more:
         if fid not in study.profile.ids:
@@ -380,6 +413,7 @@ def plan_more(study, more: dict, probed: dict, *, controller=None):
                 file=str(study.path),
                 feature=fid,
             )
+    _refuse_unreachable(study, [u for u in unreachable if int(more.get(u.feature, 0)) > 0])
     for f in study.profile.features:
         have = probed.get(f.id)
         counts[f.id] = (0 if have is None else len(have)) + int(more.get(f.id, 0))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import CHORD_ERROR_MM, feature_polyline, path_distance
+from ..geometry import CHORD_ERROR_MM, feature_polyline, path_distance, profile_kind
 
 _SAFE = 3 * CHORD_ERROR_MM  # see _plan
 
@@ -17,21 +17,12 @@ def _profile_polyline(profile) -> np.ndarray:
     return np.vstack([parts[0]] + [p[1:] for p in parts[1:]])
 
 
-def is_internal(profile) -> bool:
-    """A bore: the outward normals point toward the axis on the whole (length-weighted)."""
-    total = 0.0
-    for f in profile.features:
-        q = np.asarray(f.point_at(np.linspace(0.0, 1.0, 5)), dtype=float)
-        n = np.asarray(f.outward_normal(q), dtype=float)
-        total += f.length * float(n[:, 0].mean())
-    return total < 0.0
-
-
 def retract_x(study, s) -> float:
-    """The retract line's X (radius, mm): clear of the stock by the clearance."""
+    """The retract line's X (radius, mm): clear of the stock by the clearance, beyond
+    the largest radius of a shaft or inside the smallest of a bore (`[profile] kind`)."""
     poly = _profile_polyline(study.profile)
     grow = s.stock + study.probe.ball_radius + s.clearance
-    if is_internal(study.profile):
+    if profile_kind(study.profile) == "internal":  # the study's declared [profile] kind
         x = float(poly[:, 0].min()) - grow
         if x < 0.0:
             raise InputError(

@@ -277,7 +277,7 @@ PLAN_CLASSES = [
     ("plan_overtravel", "[program]", "[plan]\novertravel = 0.05\n\n[program]", [], "plan.overtravel 0.05 mm is not beyond [compensation] max_correction 0.1 mm"),
     ("plan_key_typo", "[program]", "[plan]\nclearence = 1.0\n\n[program]", [], "did you mean 'clearance'"),
     ("plan_probe_on", "[program]", "[plan]\nprobe_on = \"M64 P0 (on)\"\n\n[program]", [], "plan.probe_on: expected G-code words such as 'M64 P0'"),
-    ("plan_big_ball", "ball_radius = 1.0", "ball_radius = 2.9", [], "cannot touch feature 'fillet' anywhere"),
+    ("plan_big_ball", "ball_radius = 1.0", "ball_radius = 2.9", ["--strict"], "feature 'fillet': the 2.9 mm ball cannot touch it anywhere"),
 ]  # fmt: skip
 
 
@@ -299,9 +299,11 @@ def test_each_plan_refusal_gets_its_one_line_message(capsys, demo_copy, case):
 SIM_CLASSES = [
     ("sim_g95", "G90 G94", "G90 G95", None, [], 2, "Cannot probe with feed per rev mode (G95", 15),
     ("sim_comp", "G40 G90", "G41 G90", None, [], 2, "Cannot probe with cutter radius compensation on", 15),
-    ("sim_zero", "G38.2 X25.0000 Z-1.2000", "G38.2 X29.0000 Z-1.2000", None, [], 2, "Start point too close to probe point", 15),
-    ("sim_word", "G38.2 X25.0000 Z-1.2000", "G38.2 X25.0000 Z-1.2000 E2", None, [], 2, "Unknown word starting with E", 15),
-    ("sim_miss", None, None, ('"offset": 0.021670880000000302', '"offset": -0.6'), [], 1, "G38.2 move finished without making contact (", 15),
+    ("sim_zero", "G38.2 X25.0000 Z-0.6630", "G38.2 X29.0000 Z-0.6630", None, [], 2, "Start point too close to probe point", 15),
+    ("sim_word", "G38.2 X25.0000 Z-0.6630", "G38.2 X25.0000 Z-0.6630 E2", None, [], 2, "Unknown word starting with E", 15),
+    # dia_24 0.6 mm in: its points 0.663 and 0.806 mm from the face touch the face's
+    # corner (the truth keeps the face at its length), the third (line 25) misses
+    ("sim_miss", None, None, ('"offset": 0.021670880000000302', '"offset": -0.6'), [], 1, "G38.2 move finished without making contact (", 25),
     ("sim_truth_value", None, None, ('"radius": 0.004', '"radius": null'), [], 2, "radius: expected a finite number (mm or rad), got None", 44),
     ("sim_truth_json", None, None, ('"deviations": {', '"deviations": {,'), [], 2, "not JSON", 24),
     ("sim_truth_feature", None, None, ('"taper"', '"tapr"'), [], 2, "unknown feature id 'tapr'", 33),

@@ -1,6 +1,7 @@
 """The PIECS path end to end, against known answers."""
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ from piecs_bayes.cli import main
 from piecs_bayes.compensate import adjusted_path
 from piecs_bayes.errors import AnalysisError
 from piecs_bayes.fit import fit_profile
-from piecs_bayes.geometry import Profile, make_feature, profile_side
+from piecs_bayes.geometry import Arc, Line, Profile, make_feature, profile_side
 from piecs_bayes.io import load_study
 from piecs_bayes.jobs import compensate_study, fit_study
 from piecs_bayes.simulate import (
@@ -183,3 +184,36 @@ def test_cli_refuses_to_overwrite_an_input(tmp_path, capsys):
     assert main(["fit", str(tmp_path / "study.toml"), "--out", str(tmp_path), "--quiet"]) == 2
     assert "refusing to overwrite an input file" in capsys.readouterr().err
     assert (tmp_path / "study.toml").read_text() == (DATA / "demo" / "study.toml").read_text()
+
+
+def test_an_arc_between_tangent_neighbours_is_rebuilt_through_its_vertices():
+    """LinuxCNC's pawn (lathe_g70_71_demo.ngc): a face meeting arc_4 at its tangent
+    point, arc_4 tangent to arc_5. The join of a circle with a tangent neighbour is
+    ill-conditioned, so the rebuilt vertices came 4 nm apart in radius from the
+    compensated centre and the Arc refused itself: an internal error for a measured
+    arc beside unmeasured neighbours. The centre now moves onto the vertices'
+    perpendicular bisector (by far less than 0.1 um); the vertices stay shared."""
+    import jax
+
+    from piecs_bayes.compensate import _mirror
+
+    face = Line("face_z8p732", (4.0, -8.732), (4.5, -8.732), -1, (-0.2, 0.2))
+    arc4 = Arc("arc_4", (4.5, -8.732), (6.285, -12.982), (4.499946446785, -11.23187249235),
+               True, -1, (-0.2, 0.2))  # fmt: skip
+    arc5 = Arc("arc_5", (6.285, -12.982), (6.285, -19.982), (9.85571, -16.482), False, -1,
+               (-0.5, 0.5))  # fmt: skip
+    prof = Profile((face, arc4, arc5))
+    dev = {"face_z8p732": np.zeros(2), "arc_5": np.zeros(3),
+           "arc_4": np.array([0.0016079406262258925, 5.876794120690458e-05, 0.002204928748982066])}  # fmt: skip
+    verts, centres, _ = jax.device_get(
+        _mirror.adjusted_geometry(prof, _mirror.compensated_deviations(prof, dev, 1.0))
+    )
+    c = np.asarray(centres[1])
+    gap = abs(np.hypot(*(verts[1] - c)) - np.hypot(*(verts[2] - c)))
+    assert 1e-6 < gap < 1e-5  # the ill-conditioned join, as computed
+    path = adjusted_path(prof, dev)
+    a = path.profile["arc_4"]
+    np.testing.assert_allclose(a.p0, verts[1], atol=0)
+    np.testing.assert_allclose(a.p1, verts[2], atol=0)
+    assert abs(math.dist(a.p0, a.center) - math.dist(a.p1, a.center)) < 1e-12
+    assert 0 < math.dist(a.center, c) < 1e-4

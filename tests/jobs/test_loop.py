@@ -89,6 +89,8 @@ def _demo_truth(study):
 def _check(study, fit, truth, tmp):
     chars = characteristics(study, fit, at="worst")
     for f in study.profile.features:
+        if f.id in fit.unmeasured:  # the plan could not reach it: corrected by nothing
+            continue
         c = chars[f.id]
         true = float(normal_deviation(f, truth[f.id], c.t))
         assert abs(c.mean - true) <= 3 * c.sd, (f.id, c.mean, true, c.sd)
@@ -242,6 +244,10 @@ def test_the_loop_on_canned_cycle_programs(tmp_path, program, truth, controller)
     small = program.name == "lathe_g70_71_demo.ngc"  # a pawn: features of a few mm
     study, fit, tr = _loop(tmp_path, program, truth, controller=controller,
                            ball=0.25 if small else 1.0, points=6 if small else None)  # fmt: skip
+    # the pawn's shortest features (a 0.46 mm diameter, a 0.5 mm face, a 0.42 mm arc)
+    # cannot hold a fit's points at the plan's 0.1 mm spacing: planned without them, not
+    # measured, the loop closes on the rest
+    assert set(fit.unmeasured) == ({"dia_4", "face_z8p732", "arc_6"} if small else set())
     _check(study, fit, tr, tmp_path)
 
 

@@ -65,13 +65,16 @@ def test_the_design_is_never_worse_than_uniform(study, n):
 
 
 def test_the_design_lowers_u_on_the_lines_ends_and_the_arc(study):
-    """Measured at 8 points per feature (u_fit, the part a design can change): 17-21 %
+    """Measured at 8 points per feature (u_fit, the part a design can change): 14.5-23 %
     on the lines (where the characteristic's worst point is an end), 17 % on the
     fillet. Two clusters at the window's ends, no share inside and no spacing, would
-    reach ~25 % on a line: the share inside and the 0.1 mm spacing cost the rest."""
+    reach ~25 % on a line: the share inside and the 0.1 mm spacing cost the rest.
+    (With the windows of the former rule, r + end clearance from every sharp end, the
+    lines gained 17-21 %; the wider windows lower u_fit itself on every line, by 1 to
+    21 %, the shoulder's most, and uniform spacing gains from them too.)"""
     plan = plan_study(study, points=8)
     gains = {f.feature: 1.0 - f.designed.u_fit / f.uniform.u_fit for f in plan.features}
-    assert min(gains.values()) >= 0.15, gains
+    assert min(gains.values()) >= 0.14, gains
     for f in plan.features:
         if study.profile[f.feature].kind == "line":
             assert f.designed.t in (0.0, 1.0)  # the worst point is an end
@@ -175,10 +178,19 @@ def test_a_straight_move_that_would_hit_the_part_goes_around(tmp_path):
     assert crossing and retracts >= 2  # some straight moves would hit; those went around
 
 
-def test_a_groove_narrower_than_the_ball_is_refused(tmp_path):
+def test_a_groove_narrower_than_the_ball_is_left_out_or_refused_when_strict(tmp_path):
+    """A 1.5 mm groove and a 2 mm ball: its flanks and floor are not measured, no
+    setting reaches them; the collars and the face are planned. `strict` refuses."""
     study = _groove_study(tmp_path, width=1.5)
-    with pytest.raises(InputError, match="cannot touch feature 'flank_1'"):
-        plan_study(study, points=3)
+    plan = plan_study(study, points=3)
+    assert [f.feature for f in plan.features] == ["face", "collar_1", "collar_2"]
+    assert [u.feature for u in plan.unreachable] == ["flank_1", "groove_floor", "flank_2"]
+    for u in plan.unreachable:
+        assert (u.clearance, u.end_clearance) == (None, None)
+        assert "cannot touch it anywhere" in u.reason and "a smaller ball" in u.remedy
+    assert {p.feature for p in plan.points} == {"face", "collar_1", "collar_2"}
+    with pytest.raises(InputError, match="3 feature.*not measured.*'flank_1'.*'flank_2'"):
+        plan_study(study, points=3, strict=True)
 
 
 def test_a_plan_needs_the_probe_tool_and_feed(tmp_path, study):
@@ -190,11 +202,13 @@ def test_a_plan_needs_the_probe_tool_and_feed(tmp_path, study):
 
 def test_measure_more_plans_points_that_decide(tmp_path):
     """The demo part as drawn, with dia_24 held to +-8 um on the diameter, probed with 4
-    designed points per feature, 20 simulated parts: about half get "measure more" on
-    dia_24 (measured: 10); their extra points, planned beside the probed ones and
-    probed in addition on the same part, give a sure verdict on most (measured: 8 of
-    10; the count asked for is the least that decides at the current estimate, which
-    the new points move). Asserted: at least 5 ask, at least 70 % of them decide."""
+    designed points per feature, 40 simulated parts: about 40 % get "measure more" on
+    dia_24 (measured: 16); their extra points, planned beside the probed ones and
+    probed in addition on the same part, give a sure verdict on most (measured: 11 of
+    16; over 140 parts 76 %, 47 of 62, and 80 % with the windows of the former rule,
+    r + end_clearance from every sharp end: the count asked for is the least that
+    decides at the current estimate, which the new points move, so a one-point ask is
+    near a coin flip). Asserted: at least 10 ask, at least 60 % of them decide."""
     text = DEMO.read_text().replace(
         "end = [24.0000, -30.0000]\ntolerance = [-0.0200, 0.0200]",
         "end = [24.0000, -30.0000]\ntolerance = [-0.0080, 0.0080]",
@@ -205,7 +219,7 @@ def test_measure_more_plans_points_that_decide(tmp_path):
     few = plan_study(study, points=4)
     fr = {f.feature: np.array(f.fractions) for f in few.features}
     asked, decided, failed = 0, 0, 0
-    for seed in range(1, 21):
+    for seed in range(1, 41):
         first_sim = _simulate(study, {}, fr, seed)
         first = _probe(study, {}, {}, tmp_path / "p1.csv", seed=seed, keep=first_sim)
         try:
@@ -224,7 +238,7 @@ def test_measure_more_plans_points_that_decide(tmp_path):
         second = _probe(study, {}, new, tmp_path / "p2.csv", seed=seed + 100, keep=first_sim)
         dec2 = {r.feature: r for r in decide_study(study, fit_study(study, second)).decisions}
         decided += dec2["dia_24"].verdict != "measure more"
-    assert failed <= 2 and asked >= 5 and decided >= 0.7 * asked, (failed, asked, decided)
+    assert failed <= 2 and asked >= 10 and decided >= 0.6 * asked, (failed, asked, decided)
 
 
 def test_probed_points_are_found_back_along_their_feature(study):
@@ -332,23 +346,41 @@ def test_short_windows_and_shares_give_distinct_points(study):
     assert augment_fractions(f, [0.3], 0, (0.2, 0.8), s).size == 0
 
 
-def test_a_feature_with_a_one_point_window_is_refused(tmp_path):
-    """A pin: a face from the axis to 4.8 mm diameter. With a 1 mm ball the face's
-    usable window is one point at most: refused, not probed 60 times at one place."""
+def _pin(tmp_path, diameter: float):
+    """The groove study's face made a pin's end: from the axis to `diameter`."""
+    d = f"{diameter:g}"
     text = _groove_study(tmp_path, width=8.0).path.read_text()
     text = text.replace(
-        "start = [10.0, 0.0]\nend = [30.0, 0.0]", "start = [0.0, 0.0]\nend = [4.8, 0.0]"
+        "start = [10.0, 0.0]\nend = [30.0, 0.0]", f"start = [0.0, 0.0]\nend = [{d}, 0.0]"
     )
     text = text.replace(
-        "start = [30.0, 0.0]\nend = [30.0, -10.0]", "start = [4.8, 0.0]\nend = [4.8, -10.0]"
+        "start = [30.0, 0.0]\nend = [30.0, -10.0]", f"start = [{d}, 0.0]\nend = [{d}, -10.0]"
     )
     text = text.replace(
-        "start = [30.0, -10.0]\nend = [20.0, -10.0]", "start = [4.8, -10.0]\nend = [20.0, -10.0]"
+        "start = [30.0, -10.0]\nend = [20.0, -10.0]", f"start = [{d}, -10.0]\nend = [20.0, -10.0]"
     )
-    assert text.count("4.8") == 4, text
+    assert text.count(f"[{d},") == 4, text
     (tmp_path / "pin.toml").write_text(text)
-    with pytest.raises(InputError, match="cannot touch feature 'face'"):
-        plan_study(load_study(tmp_path / "pin.toml"), points=5)
+    return load_study(tmp_path / "pin.toml")
+
+
+def test_a_pins_end_face_is_probed_between_its_margins_or_left_out(tmp_path):
+    """A pin's end face from the axis (a free end of the profile: the ball radius plus
+    the end clearance, 1.2 mm) to its convex edge, where the ball clears the edge by the
+    end clearance e: sqrt(2 r e + e^2) = 0.663 mm from it (moving along the face's
+    normal the ball cannot touch the edge first; the former rule kept r + e). At Ø4.8
+    the window is x in [1.2, 1.737] mm; at Ø2.4 there is none, and even with no end
+    clearance, x in [1.0, 1.2] holds 3 points at the 0.1 mm spacing, not the 5 the fit
+    needs: not measured, no setting reaches it (not probed 60 times at one place)."""
+    study = _pin(tmp_path, 4.8)
+    plan = plan_study(study, points=5)
+    t0, t1 = plan.feature("face").window
+    assert t0 * 2.4 == pytest.approx(1.2, abs=2.5e-4)
+    assert math.hypot(2.4 - t1 * 2.4, 1.0) - 1.2 == pytest.approx(0.0, abs=2.5e-4)
+    plan = plan_study(_pin(tmp_path, 2.4), points=5)
+    (u,) = plan.unreachable
+    assert u.feature == "face" and "face" not in {f.feature for f in plan.features}
+    assert (u.clearance, u.end_clearance) == (None, None)
 
 
 @pytest.mark.parametrize("n", [4, 6, 8, 12])

@@ -4,7 +4,9 @@
 the numbers (the study's; X always a radius, as LinuxCNC's probe files write it),
 the program's X mode, the controller, the frame (the finish program's work
 coordinates: the study's part frame), the settings, the per-feature predictions
-(designed and uniform) and one entry per point in program order.
+(designed and uniform), one entry per point in program order and, when the plan
+leaves features out, `unreachable` (each not measured: why, and the largest clearance,
+end clearance and spacing that reach it).
 """
 
 from __future__ import annotations
@@ -39,6 +41,9 @@ def _header(plan) -> list[str]:
         f"study {study.path.name} sha256 {sha}",
         f"plan: {plan.n_points} points on {len(plan.features)} features, "
         f"controller {plan.settings.controller}",
+    ] + [
+        f"not measured: {u.feature}, the probe cannot reach it, see plan.json"
+        for u in plan.unreachable
     ]
 
 
@@ -122,6 +127,17 @@ def plan_json(plan) -> str:
             for p in plan.points
         ],  # fmt: skip
     }
+    if plan.unreachable:  # the features left out: not measured (absent: none)
+        body["unreachable"] = [
+            {
+                "feature": u.feature,
+                "reason": u.reason,
+                "clearance": _num(u.clearance, k),
+                "end_clearance": _num(u.end_clearance, k),
+                "spacing": _num(u.spacing, k),
+            }
+            for u in plan.unreachable
+        ]
     return json.dumps(body, indent=2) + "\n"
 
 
@@ -133,9 +149,12 @@ def plan_figure(plan):
     from ...geometry import feature_polyline
 
     fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
+    left_out = {u.feature for u in plan.unreachable}
     for f in plan.study.profile.features:
         poly = feature_polyline(f)
         ax.plot(poly[:, 1], poly[:, 0], "k-", lw=1.5)
+        if f.id in left_out:
+            ax.plot(poly[:, 1], poly[:, 0], "--", color="C3", lw=3, label=f"{f.id}: not measured")
     path = [plan.home] + [p for _, p in plan.path]
     zx = np.array([(p[1], p[0]) for p in path])
     ax.plot(zx[:, 0], zx[:, 1], "-", color="0.7", lw=0.8, label="moves")
