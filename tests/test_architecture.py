@@ -5,7 +5,7 @@ Every module's imports, lazy ones inside functions included, are read with `ast`
 each module of piecs_bayes belongs to the layer of its top-level package:
 
     cli > export > jobs > simulate > uncertainty > feedback
-        > gcode | fit | compensate | decide | capability > io > geometry
+        > gcode | fit | compensate | decide | capability | msa > io > geometry
         > errors | _config
 
 A module imports only its own package and the layers below it; siblings of one
@@ -41,7 +41,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("simulate",),
     ("uncertainty",),
     ("feedback",),
-    ("gcode", "fit", "compensate", "decide", "capability"),
+    ("gcode", "fit", "compensate", "decide", "capability", "msa"),
     ("io",),
     ("geometry",),
     ("errors", "_config"),

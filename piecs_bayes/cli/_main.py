@@ -10,7 +10,7 @@ import signal
 import sys
 
 from ..errors import AnalysisError, InputError
-from . import _decide, _feedback, _fit, _gcode, _init, _plan, _probe_cal, _report
+from . import _decide, _feedback, _fit, _gauge_study, _gcode, _init, _plan, _probe_cal, _report
 from ._common import Console
 
 
@@ -29,7 +29,17 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    for module in (_init, _plan, _probe_cal, _fit, _decide, _gcode, _report, _feedback):
+    for module in (
+        _init,
+        _plan,
+        _probe_cal,
+        _fit,
+        _decide,
+        _gcode,
+        _report,
+        _feedback,
+        _gauge_study,
+    ):
         module.register(sub)
     return parser
 

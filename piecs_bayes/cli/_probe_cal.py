@@ -81,6 +81,7 @@ def cmd_calibrate_probe(args, console) -> int:
 def _summary(cal, method: str, repeatability: float, console) -> None:
     """The coefficients, how auto chose the orders, the probing error, the residual sd."""
     import numpy as np  # not at import: `--help` stays light
+
     sd = [math.sqrt(max(v, 0.0)) for v in cal.cov.diagonal()]
     model = "r0 + a2 cos 2 theta (one radius per axis)" if cal.fixed else (
         f"orders {list(cal.orders) or 'none'}")  # fmt: skip
@@ -103,6 +104,7 @@ def _summary(cal, method: str, repeatability: float, console) -> None:
 def _choice(choice: dict, console) -> None:
     """Why auto chose the orders: each candidate's u of r at the targets."""
     import numpy as np
+
     deg, count = np.unique(np.round(choice["targets_deg"], 2), return_counts=True)
     shown = [f"{d:g}" + (f" (x{c})" if c > 1 else "") for d, c in zip(deg, count, strict=True)]
     more = ", ..." if len(shown) > 12 else ""

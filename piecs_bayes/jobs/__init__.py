@@ -6,9 +6,9 @@ Each job composes the numerical layers on a study and returns immutable data;
 `decide_study`, `machine_data`; the main job end to end (`run_job` -> `JobResults`).
 Many parts: `fit_study_batch`, capability studies in chunks, in-process or on Dask
 (`capability_study`), `path_uncertainty_batch`, `feedback_study`. Also: the coverage
-check (`coverage_check`), the study's settings for the layers (`fit_options`, ...), a
-study from a part program (`init_study`), the probe plan (`plan_study`), a probe's
-r(theta) (`calibrate_probe`), the route of the correction (`apply_route`).
+check (`coverage_check`), the study's settings (`fit_options`, ...), a study from a part
+program (`init_study`), the probe plan (`plan_study`), a probe's r(theta) (`calibrate_probe`),
+the route (`apply_route`), the gauge studies (`gauge_type1_study`, `gauge_rr_study`).
 
 Each name is imported from its module when first used (`__getattr__`, PEP 562): a
 command pays only for the jobs it runs (`fit` imports neither the G-code reader nor
@@ -41,6 +41,11 @@ _EXPORTS = {
     "characteristics": "_decide",
     "decide_features": "_decide",
     "decide_study": "_decide",
+    "GaugeStudyFile": "_gauge_file",
+    "read_gauge_study": "_gauge_file",
+    "GaugeStudy": "_gauge_study",
+    "gauge_rr_study": "_gauge_study",
+    "gauge_type1_study": "_gauge_study",
     "FeatureFeedback": "_feedback",
     "FeedbackResult": "_feedback",
     "FeedbackSettings": "_feedback",

@@ -1,4 +1,5 @@
-"""Tables of results: CSV/JSON/text of fits, bounds, decisions, capability, feedback."""
+"""Tables of results: CSV/JSON/text of fits, bounds, decisions, capability, feedback,
+gauge studies."""
 
 from ... import _config  # noqa: F401  (float64 before any JAX array)
 from ._csv import band_csv as band_csv
@@ -14,6 +15,8 @@ from ._csv import to_csv as to_csv
 from ._feedback import feedback_csvs as feedback_csvs
 from ._feedback import feedback_json as feedback_json
 from ._feedback import feedback_text as feedback_text
+from ._gauge import gauge_json as gauge_json
+from ._gauge import gauge_text as gauge_text
 from ._jobs import capability_csvs as capability_csvs
 from ._jobs import capability_json as capability_json
 from ._jobs import capability_text as capability_text
