@@ -20,7 +20,8 @@ from piecs_bayes.io import read_probe_csv
 from piecs_bayes.io._probe import read_probe_csv_by_rows
 
 ROOT = Path(__file__).resolve().parents[2]
-SHIPPED = sorted((ROOT / "data").glob("*/*.csv"))
+#: the shipped probe files (data/gauge holds a gauge study's readings, not probe points)
+SHIPPED = sorted(p for p in (ROOT / "data").glob("*/*.csv") if p.parent.name != "gauge")
 FIELDS = ("feature", "points", "lines", "part", "approach", "time", "temperature")
 
 
