@@ -210,10 +210,19 @@ def test_an_arc_between_tangent_neighbours_is_rebuilt_through_its_vertices():
     )
     c = np.asarray(centres[1])
     gap = abs(np.hypot(*(verts[1] - c)) - np.hypot(*(verts[2] - c)))
-    assert 1e-6 < gap < 1e-5  # the ill-conditioned join, as computed
+    assert gap < 1e-5  # ill-conditioned: 4e-6 mm here, rounding-dependent elsewhere
     path = adjusted_path(prof, dev)
     a = path.profile["arc_4"]
     np.testing.assert_allclose(a.p0, verts[1], atol=0)
     np.testing.assert_allclose(a.p1, verts[2], atol=0)
     assert abs(math.dist(a.p0, a.center) - math.dist(a.p1, a.center)) < 1e-12
-    assert 0 < math.dist(a.center, c) < 1e-4
+    assert math.dist(a.center, c) < 1e-4
+    # the projection itself, on vertices 4 nm apart in radius (machine-independent)
+    v0, v1, cc = (4.5, -8.732), (6.285, -12.982), (4.5015, -11.2318)
+    d0 = math.dist(v0, cc)
+    v1 = tuple(cc[k] + (v1[k] - cc[k]) * (d0 + 4e-6) / math.dist(v1, cc) for k in (0, 1))
+    moved = _mirror._equidistant_centre("arc", v0, v1, cc)
+    assert abs(math.dist(v0, moved) - math.dist(v1, moved)) < 1e-12
+    assert 0 < math.dist(moved, cc) < 1e-4
+    with pytest.raises(AnalysisError, match="compensated arc 'arc': its end vertices lie"):
+        _mirror._equidistant_centre("arc", v0, (v1[0] + 0.001, v1[1]), cc)
