@@ -28,6 +28,7 @@ from .. import _config
 from ..errors import InputError
 from ._actions import ActionLoss, evaluate_actions
 from ._conformance import Conformance
+from ._risk import ConformityRisk, GuardBand, conformity_risk
 from ._settings import DecisionSettings
 from ._verdict import Verdict, VerdictWords, clear_verdict, conclude
 
@@ -76,6 +77,18 @@ class Decision:
     coordinate: str = "normal"
     scale: float = 1.0
 
+    def risk(self, when: str = "before") -> ConformityRisk:
+        """The conformity decision on the feature as measured (`"before"`) or as
+        predicted after the correction (`"after"`), with its specific risks (JCGM 106,
+        `decide.conformity_risk`): accepted inside this decision's acceptance zone
+        (ISO 14253-1, the tolerance less the guard band), the consumer's risk is
+        P(out of tolerance | data); rejected, the producer's risk is P(in tolerance | data)."""
+        c = self.conformance_before if when == "before" else self.conformance_after
+        lo, hi = c.tolerance
+        width = max(c.acceptance[0] - lo, hi - c.acceptance[1])
+        band = GuardBand("fixed", width=width, max_width=max(width, 0.5 * (hi - lo)))
+        return conformity_risk(c.tolerance, value=c.value, u=c.u, dof=self.dof, guard_band=band)
+
     @property
     def drawn_estimate(self) -> float:
         return self.scale * self.estimate
@@ -122,6 +135,8 @@ class Decision:
             "conformance_before": self.conformance_before.state,
             "p_conform_after": self.conformance_after.p_conform,
             "conformance_after": self.conformance_after.state,
+            **_risk_columns(self.risk("before"), "before"),
+            **_risk_columns(self.risk("after"), "after"),
             "best_action": self.best_action,
             "blocked": self.blocked,
             "n_points": self.n_points,
@@ -398,3 +413,12 @@ def _best_action(actions) -> str:
     bits of a fit never flip the choice."""
     low = min(a.expected_loss for a in actions)
     return next(a.name for a in actions if a.expected_loss <= low + 1e-9 * abs(low))
+
+
+def _risk_columns(risk: ConformityRisk, when: str) -> dict:
+    """The flat columns of one conformity decision's specific risks."""
+    return {
+        f"decision_{when}": risk.decision,
+        f"consumer_risk_{when}": risk.specific_consumer_risk,
+        f"producer_risk_{when}": risk.specific_producer_risk,
+    }

@@ -307,3 +307,32 @@ def test_drawn_feature_defaults_and_refusal():
     assert (d.feature, d.coordinate, d.scale) == ("D9", "diameter", 2.0)
     with pytest.raises(InputError, match="feature 'D9'.*scale must be a finite number, got nan"):
         DrawnFeature("D9", "diameter", float("nan"))
+
+
+@pytest.mark.parametrize("mean", [0.004, 0.0085, 0.012, -0.0095])
+def test_each_conformity_decision_carries_its_specific_risk(mean):
+    """The decision on the feature as measured (ISO 14253-1's acceptance zone, the
+    tolerance less U): accepted, the consumer's risk is P(out | data) = 1 - p_conform;
+    rejected, the producer's risk is P(in | data) = p_conform (JCGM 106, 9.3). After
+    the correction the same from conformance_after. Closed form: the normal CDF."""
+    from scipy.stats import norm
+
+    d = decide(tolerance=TOL, mean=mean, sd=0.0008, n_points=20)
+    for when, c in (("before", d.conformance_before), ("after", d.conformance_after)):
+        r = d.risk(when)
+        assert r.acceptance == pytest.approx(c.acceptance, abs=1e-15)
+        inside = c.acceptance[0] <= c.value <= c.acceptance[1]
+        p_in = norm.cdf((TOL[1] - c.value) / c.u) - norm.cdf((TOL[0] - c.value) / c.u)
+        assert r.decision == ("accept" if inside else "reject")
+        if inside:
+            assert r.specific_consumer_risk == pytest.approx(1 - p_in, rel=1e-9, abs=1e-15)
+            assert r.specific_producer_risk == 0.0
+        else:
+            assert r.specific_producer_risk == pytest.approx(p_in, rel=1e-9, abs=1e-15)
+            assert r.specific_consumer_risk == 0.0
+        assert r.specific_consumer_risk + r.specific_producer_risk == pytest.approx(
+            (1 - c.p_conform) if inside else c.p_conform, rel=1e-9, abs=1e-15
+        )
+    row = d.as_row()
+    assert row["decision_before"] == d.risk("before").decision
+    assert row["consumer_risk_after"] == d.risk("after").specific_consumer_risk

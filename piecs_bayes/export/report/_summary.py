@@ -10,6 +10,7 @@ import numpy as np
 
 from ...fit import coverage_factor
 from ...geometry import drawn_scale
+from ..tables import risk_text
 from .model import Bullets, Fig, Para, Pre, Table, Tables, css_class, num
 
 #: coverage probability of a k = 2 interval under the normal (JCGM 100 G.6)
@@ -63,6 +64,7 @@ def _empty_row(f, fit, gain: float) -> dict:
         "null_band_um": math.nan,
         "conformance": "",
         "p_exceed": math.nan,
+        "risk": "",
     }
 
 
@@ -98,6 +100,7 @@ def summary_rows(res) -> list[dict]:
                 null_band_um=d.null_band * a,
                 conformance=d.conformance_before.state,
                 p_exceed=d.p_exceed,
+                risk=risk_text(d.risk("before")),
             )
         elif f.id in chars:
             c = chars[f.id]

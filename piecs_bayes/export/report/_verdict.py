@@ -26,10 +26,11 @@ def _verdict_table(rows: list[dict]) -> Table:
                 tolerance_text(r["tol_lower_um"], r["tol_upper_um"], r["coordinate"]),
                 num(r["deviation_um"], "+.1f", 1) + " ± " + num(r["U_um"], ".1f", 1),
                 state,
+                r.get("risk") or "–",
                 r["verdict"],
             ]
         )
-        cells.append(["", "", "", "", css_class(state), css_class(r["verdict"])])
+        cells.append(["", "", "", "", css_class(state), "", css_class(r["verdict"])])
     return Table(
         [
             "feature",
@@ -37,6 +38,7 @@ def _verdict_table(rows: list[dict]) -> Table:
             "tolerance (µm)",
             "deviation ± U (µm)",
             "conformance as measured",
+            "risk of that decision",
             "verdict for the next part",
         ],
         table,
@@ -44,7 +46,9 @@ def _verdict_table(rows: list[dict]) -> Table:
         "position of a face, 'normal' along the surface normal (tapers, arcs); + is more "
         "material. U: expanded uncertainty (95 %). Conforms: inside the tolerance by more "
         "than U; does not conform: outside by more than U; ambiguous: within U of a limit "
-        "(ISO 14253-1).",
+        "(ISO 14253-1). Risk (JCGM 106, specific): a part accepted inside the acceptance zone "
+        "(the tolerance less U) is out of tolerance with the consumer's risk; one rejected "
+        "is in tolerance with the producer's risk.",
         cells=cells,
         emphasis=True,
     )

@@ -33,6 +33,8 @@ def decisions_json(table, *, apply: Mapping | None = None) -> str:
         row["characteristic"] = None if c is None else json_safe(asdict(c))
         row["conformance_before"] = json_safe(asdict(d.conformance_before))
         row["conformance_after"] = json_safe(asdict(d.conformance_after))
+        row["conformity_risk_before"] = d.risk("before").as_dict()
+        row["conformity_risk_after"] = d.risk("after").as_dict()
         row["actions"] = [json_safe(asdict(a)) for a in d.actions]
         row["reasons"] = list(d.reasons)
         feats.append(row)
@@ -84,11 +86,34 @@ def decisions_text(table) -> str:
         )
     if table.unmeasured:
         lines.append(f"not measured (no decision): {', '.join(table.unmeasured)}")
-    lines.append("")
+    lines += ["", _risk_lines(table)]
     for d in table.decisions:
         lines.append(f"{d.feature}: {d.verdict}")
         lines += [f"  - {r}" for r in d.reasons]
     return "\n".join(lines)
+
+
+def risk_text(risk) -> str:
+    """'accept, consumer's risk 0.12 %' (JCGM 106's specific risk of the decision)."""
+    if risk.decision == "accept":
+        return f"accept, consumer's risk {percent(risk.specific_consumer_risk)}"
+    return f"reject, producer's risk {percent(risk.specific_producer_risk)}"
+
+
+def percent(p: float) -> str:
+    """A probability as a percentage to 2 significant digits; below 0.01 %: '< 0.01 %'."""
+    return "< 0.01 %" if p < 1e-4 else f"{100 * p:.2g} %"
+
+
+def _risk_lines(table) -> str:
+    """Each feature's conformity decision, as measured and after the correction,
+    with its specific risk (JCGM 106), then a blank line."""
+    out = ["Conformity decisions with their risks (JCGM 106; accepted inside the "
+           "acceptance zone, the tolerance less the guard band U):"]  # fmt: skip
+    for d in table.decisions:
+        out.append(f"  {d.feature:<11} as measured: {risk_text(d.risk('before')):<36} "
+                   f"after the correction: {risk_text(d.risk('after'))}")  # fmt: skip
+    return "\n".join(out) + "\n"
 
 
 def capability_json(study) -> str:
