@@ -32,6 +32,7 @@ from ..capability import (
     predict_capability,
     stability_check,
 )
+from ..decide import ConformityRisk, GuardBand, ProcessPrior, conformity_risk
 from ..errors import AnalysisError, InputError
 from ..fit import CHUNK_PARTS
 from ..geometry import drawn_scale
@@ -145,6 +146,25 @@ class FeatureCapability:
             out.append("moving range")
         return "; ".join(out)
 
+    def risks(self, target: float = 0.02) -> tuple[ConformityRisk, ConformityRisk] | None:
+        """The global conformity risks of judging this run's parts by their measured
+        values (JCGM 106, 9.5; as drawn): the process prior N(mean, sigma_p) with the
+        measurement's share taken off the overall spread, sigma_p^2 = sigma_overall^2 -
+        u_gauge^2 (u_gauge: the rms of the parts' u), and the measurement N(0, u_gauge).
+        First with the tolerance as the acceptance zone, then with the guard band at
+        which the global consumer's risk is `target`. None when the gauge's u is not
+        below the overall spread (the process cannot be told from the gauge)."""
+        c = self.capability
+        gauge = float(np.sqrt(np.mean(self.u**2)))
+        var = c.sigma_overall**2 - gauge**2
+        if not (gauge > 0.0 and var > 0.0 and math.isfinite(var)):
+            return None
+        prior = ProcessPrior(c.mean, math.sqrt(var))
+        tol = (c.lsl, c.usl)
+        kw = dict(process=prior, u_measurement=gauge)
+        plain = conformity_risk(tol, **kw)
+        return plain, conformity_risk(tol, guard_band=GuardBand("target", target=target), **kw)
+
     def summary(self) -> dict:
         """One row: the coordinate, the lengths as drawn (`*_drawn_mm`), the indices,
         stability and prediction, then the lengths as normal deviations (`*_mm`)."""
@@ -172,6 +192,11 @@ class FeatureCapability:
             row["bayes_cp"] = b.cp
             row["bayes_cp_lower"], row["bayes_cp_upper"] = b.cp_interval
             row["p_cpk_above"] = b.p_cpk_above
+        risks = self.risks()
+        row["process_sd_drawn_mm"] = risks[0].process.sd if risks else math.nan
+        row["global_consumer_risk"] = risks[0].global_consumer_risk if risks else math.nan
+        row["global_producer_risk"] = risks[0].global_producer_risk if risks else math.nan
+        row["guard_band_2pct_drawn_mm"] = risks[1].guard_band if risks else math.nan
         row["in_control"] = s.in_control
         row["n_out_of_control"] = len(s.out_of_control)
         row["step_part"] = self.step_part or ""

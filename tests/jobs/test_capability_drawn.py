@@ -249,3 +249,38 @@ def test_the_chart_is_labelled_as_drawn(run):
     ax = next(a for a in fig.axes if a.get_title().startswith("dia_24"))
     red = [ln.get_ydata()[0] for ln in ax.get_lines() if ln.get_color() == "C3"]
     assert sorted(red) == pytest.approx([-20.0, 20.0])  # the tolerance, as drawn
+
+
+def test_a_capability_study_states_the_global_risks_of_judging_its_parts():
+    """60 parts of N(4 um, 6 um) on +-20 um, each measured with u = 1.5 um (and a
+    wider run, N(4 um, 15 um) measured with u = 6 um, consumer's risk 3.5 %): the process
+    prior takes the gauge's share off the overall spread (sigma_p^2 = s^2 - u^2) and
+    the global risks are decide.global_risks' with it (JCGM 106, 9.5); the guard band
+    for a 2 % consumer's risk is 0 when the plain acceptance already meets it, and
+    positive when it does not (a wider process). A gauge as wide as the spread gives
+    no risks (the process cannot be told from the gauge)."""
+    from piecs_bayes.decide import ProcessPrior, global_risks
+
+    rng = np.random.default_rng(3)
+    for sd, um, meets in ((0.006, 0.0015, True), (0.015, 0.006, False)):
+        y = 0.004 + sd * rng.standard_normal(60)
+        f = D.capability_from_values(
+            {"d": y}, {"d": (-0.02, 0.02)}, u={"d": np.full(60, um)},
+            options=CapabilityOptions(n_draws=2_000),
+        )["d"]  # fmt: skip
+        plain, guarded = f.risks()
+        c = f.capability
+        sp = math.sqrt(c.sigma_overall**2 - um**2)
+        assert plain.process.sd == pytest.approx(sp, rel=1e-12)
+        tol = (-0.02, 0.02)
+        ref = global_risks(tol, tol, u=um, process=ProcessPrior(c.mean, sp))
+        assert plain.global_consumer_risk == pytest.approx(ref.consumer, rel=1e-9, abs=1e-15)
+        assert plain.global_producer_risk == pytest.approx(ref.producer, rel=1e-9, abs=1e-15)
+        assert (guarded.guard_band == 0.0) == meets == (plain.global_consumer_risk <= 0.02)
+        if not meets:
+            assert guarded.global_consumer_risk == pytest.approx(0.02, abs=1e-9)
+        row = f.summary()
+        assert row["global_consumer_risk"] == plain.global_consumer_risk
+        assert row["guard_band_2pct_drawn_mm"] == guarded.guard_band
+    wide = D.capability_from_values({"d": y}, {"d": (-0.02, 0.02)}, u={"d": np.full(60, 0.05)})
+    assert wide["d"].risks() is None and math.isnan(wide["d"].summary()["global_consumer_risk"])
