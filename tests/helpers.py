@@ -323,3 +323,19 @@ def batch_study_with(folder: Path, table: str, parts: str = "part*.csv") -> Path
     path = folder / "study.toml"
     path.write_text(text + "\n[feedback]\n" + table + "\n", encoding="utf-8")
     return path
+
+
+def three_sds(n: int) -> tuple[float, float]:
+    """The window of 3 binomial sds about 95 % for a coverage rate over `n` trials."""
+    half = 3.0 * math.sqrt(0.95 * 0.05 / n)
+    return 0.95 - half, 0.95 + half
+
+
+def window_pass_rate(window: tuple[float, float], n: int, p: float) -> float:
+    """How often a rate over `n` trials of true coverage `p` falls in `window`: the
+    exact binomial probability of the passing counts."""
+    from scipy.stats import binom
+
+    lo, hi = window
+    k_lo, k_hi = math.ceil(lo * n - 1e-9), math.floor(hi * n + 1e-9)
+    return float(binom.cdf(k_hi, n, p) - binom.cdf(k_lo - 1, n, p))

@@ -18,9 +18,8 @@ import json
 
 import numpy as np
 import pytest
-from helpers import run_cli
+from helpers import run_cli, three_sds, window_pass_rate
 from scipy import stats
-from scipy.stats import binom
 
 from piecs_bayes.errors import InputError
 from piecs_bayes.fit import (
@@ -121,29 +120,19 @@ def _coverage(m: int, seed: int):
     return float(hits.mean()), hits.mean(axis=0), chosen
 
 
-def _three_sds(n: int) -> tuple[float, float]:
-    half = 3.0 * np.sqrt(0.95 * 0.05 / n)
-    return 0.95 - half, 0.95 + half
-
-
 #: per tier: calibrations, window of the pooled rate, how often a true 95 % passes at
 #: least, a coverage the window must catch and how often at least (exact binomial
 #: over the calibrations: the four directions of one calibration are not independent,
 #: so counting calibrations, not intervals, understates the power)
-TIERS = {"fast": (300, _three_sds(300), 0.995, 0.88, 0.95),
+TIERS = {"fast": (300, three_sds(300), 0.995, 0.88, 0.95),
          "slow": (1000, (0.935, 0.965), 0.97, 0.92, 0.85)}  # fmt: skip
 
 
 @pytest.mark.parametrize("tier", TIERS)
 def test_the_coverage_windows_have_the_stated_power(tier):
-    n, (lo, hi), level, worse, power = TIERS[tier]
-    k_lo, k_hi = np.ceil(lo * n - 1e-9), np.floor(hi * n + 1e-9)
-
-    def passes(p):
-        return float(binom.cdf(k_hi, n, p) - binom.cdf(k_lo - 1, n, p))
-
-    assert passes(0.95) >= level
-    assert 1.0 - passes(worse) >= power
+    n, window, level, worse, power = TIERS[tier]
+    assert window_pass_rate(window, n, 0.95) >= level
+    assert 1.0 - window_pass_rate(window, n, worse) >= power
 
 
 def test_auto_on_the_half_sphere_covers_at_300_calibrations():

@@ -25,7 +25,7 @@ import re
 
 import numpy as np
 import pytest
-from scipy.stats import binom
+from helpers import three_sds, window_pass_rate
 
 from piecs_bayes.errors import InputError
 from piecs_bayes.geometry import MachineTransform
@@ -57,19 +57,13 @@ def _check(known_sigma, n_parts, window, *, bayes=False, seed=0):
     return res
 
 
-def _three_sds(n: int) -> tuple[float, float]:
-    """The window of 3 binomial sds about 95 % for a rate over n parts."""
-    half = 3.0 * np.sqrt(0.95 * 0.05 / n)
-    return 0.95 - half, 0.95 + half
-
-
 #: per tier: parts, window, how often a true 95 % passes at least, a coverage the
 #: window must catch and how often at least
 TIERS = {
-    "lin": (300, _three_sds(300), 0.995, 0.88, 0.95),
+    "lin": (300, three_sds(300), 0.995, 0.88, 0.95),
     "lin-slow": (1000, WINDOW, 0.97, 0.92, 0.85),
-    "mc": (100, _three_sds(100), 0.995, 0.83, 0.90),
-    "mc-slow": (400, _three_sds(400), 0.995, 0.90, 0.85),
+    "mc": (100, three_sds(100), 0.995, 0.83, 0.90),
+    "mc-slow": (400, three_sds(400), 0.995, 0.90, 0.85),
 }
 
 
@@ -77,14 +71,9 @@ TIERS = {
 def test_the_windows_have_the_stated_power(tier):
     """Each tier's window passes a true 95 % coverage and fails the stated lower
     coverage as often as stated (exact binomial)."""
-    n, (lo, hi), level, worse, power = TIERS[tier]
-    k_lo, k_hi = np.ceil(lo * n - 1e-9), np.floor(hi * n + 1e-9)  # the passing counts
-
-    def passes(p):
-        return float(binom.cdf(k_hi, n, p) - binom.cdf(k_lo - 1, n, p))
-
-    assert passes(0.95) >= level
-    assert 1.0 - passes(worse) >= power
+    n, window, level, worse, power = TIERS[tier]
+    assert window_pass_rate(window, n, 0.95) >= level
+    assert 1.0 - window_pass_rate(window, n, worse) >= power
 
 
 def _linearised(known_sigma, tier):

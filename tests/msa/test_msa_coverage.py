@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.stats import binom
+from helpers import three_sds, window_pass_rate
 
 from piecs_bayes.msa import MsaSettings, gauge_rr_batch, type1_batch
 
@@ -28,28 +28,18 @@ WINDOW = (0.935, 0.965)
 T = 0.020
 
 
-def _three_sds(n: int) -> tuple[float, float]:
-    half = 3.0 * np.sqrt(0.95 * 0.05 / n)
-    return 0.95 - half, 0.95 + half
-
-
 #: per tier: studies, window, how often a true 95 % passes at least, a coverage the
 #: window must catch and how often at least
-TIERS = {"fast": (300, _three_sds(300), 0.995, 0.88, 0.95),
-         "slow-each": (1000, _three_sds(1000), 0.995, 0.90, 0.97),
+TIERS = {"fast": (300, three_sds(300), 0.995, 0.88, 0.95),
+         "slow-each": (1000, three_sds(1000), 0.995, 0.90, 0.97),
          "slow-pooled": (2000, WINDOW, 0.995, 0.92, 0.99)}  # fmt: skip
 
 
 @pytest.mark.parametrize("tier", TIERS)
 def test_the_windows_have_the_stated_power(tier):
-    n, (lo, hi), level, worse, power = TIERS[tier]
-    k_lo, k_hi = np.ceil(lo * n - 1e-9), np.floor(hi * n + 1e-9)
-
-    def passes(p):
-        return float(binom.cdf(k_hi, n, p) - binom.cdf(k_lo - 1, n, p))
-
-    assert passes(0.95) >= level
-    assert 1.0 - passes(worse) >= power
+    n, window, level, worse, power = TIERS[tier]
+    assert window_pass_rate(window, n, 0.95) >= level
+    assert 1.0 - window_pass_rate(window, n, worse) >= power
 
 
 #: type-1 scenarios: (n, sigma, bias) in mm, T = 20 um: Cg 2.2 / Cgk 2.2, 2.2 / 1.9,
