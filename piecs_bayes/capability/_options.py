@@ -36,6 +36,9 @@ class CapabilityOptions:
     - `bayes`: also posterior medians and credible intervals, from `n_draws` draws
       seeded by `seed` (the predictions draw as many with the same seed).
     - `run_length`, `trend_length`: the stability rules (`stability_check`).
+    - `q_mp_limit`: the largest capability ratio of the measuring process,
+      $Q_{MP} = 2 U_{MP} / T$, at which a process may be called capable (VDA 5 /
+      ISO 22514-7: 30 %); `coverage_factor`: $k$ in $U_{MP} = k\\,u_{MP}$ (2).
     """
 
     characteristic: str = "mid"
@@ -50,6 +53,8 @@ class CapabilityOptions:
     seed: int = 0
     run_length: int = RUN_LENGTH
     trend_length: int = TREND_LENGTH
+    q_mp_limit: float = 0.30
+    coverage_factor: float = 2.0
 
     def __post_init__(self):
         _choice(self, "characteristic", CHARACTERISTICS, "characteristic")
@@ -58,6 +63,8 @@ class CapabilityOptions:
         _number(self, "confidence", lambda v: 0.0 < v < 1.0, "a number in (0, 1)")
         _number(self, "threshold", lambda v: True, "a finite number")
         _number(self, "gain", lambda v: v >= 0.0, "a finite number >= 0")
+        _number(self, "q_mp_limit", lambda v: 0.0 < v <= 1.0, "a number in (0, 1]")
+        _number(self, "coverage_factor", lambda v: v > 0.0, "a finite number > 0")
         for name in ("subtract_gauge", "bayes"):
             if not isinstance(getattr(self, name), bool):
                 _refuse(name, "true or false", getattr(self, name))

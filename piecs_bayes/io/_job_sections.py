@@ -57,6 +57,8 @@ JOB_KEYS: dict[str, dict[str, tuple]] = {
         "n_draws": ("int", (1000, None, False, False)),
         "run_length": ("int", (2, None, False, False)),
         "trend_length": ("int", (3, None, False, False)),
+        "q_mp_limit": ("number", (0.0, 1.0, True, False)),
+        "coverage_factor": ("number", _GT0),
     },
     "offsets": {
         "tool": ("int", (1, None, False, False)),

@@ -54,6 +54,16 @@ class FeatureCapability:
     overall spread kept, `predicted_within` the same with the within-part
     (moving-range) spread, i.e. if compensation also removed the drift and steps.
 
+    The measuring process (VDA 5 / ISO 22514-7): one measured value's standard
+    uncertainty `u_mp` combines the parts' fit uncertainties (rms of `u`: probe
+    repeatability and form, the part's own scatter about its model) with
+    `u_systematic` (the study's budget: calibration, machine, temperature), and
+    `q_mp = 2 k u_mp / T` must not exceed `q_mp_limit` for the process to be called
+    capable ([`verdict`][]). `corrected` holds the indices with the measurement's
+    random share taken off the spread (observed = process + measurement:
+    $\\sigma_p^2 = \\sigma^2 - \\bar u^2$, $\\bar u$ the rms of `u`); None when the
+    measurement's variance is not below the observed one.
+
     Every length (`values`, `u`, `tolerance` and those of `capability`, `stability`,
     `predicted`) is as drawn: on `coordinate` (`"diameter"`, `"radius"`, `"length"`
     or `"normal"`), `scale` times the normal deviation; `normal_values`,
@@ -74,6 +84,11 @@ class FeatureCapability:
     notes: tuple[str, ...] = ()
     coordinate: str = "normal"
     scale: float = 1.0
+    u_systematic: float = 0.0
+    corrected: CapabilityResult | None = None
+    threshold: float = 1.33
+    q_mp_limit: float = 0.30
+    coverage_factor: float = 2.0
 
     @property
     def normal_values(self) -> np.ndarray:
@@ -146,6 +161,66 @@ class FeatureCapability:
             out.append("moving range")
         return "; ".join(out)
 
+    @property
+    def u_gauge(self) -> float:
+        """The measurement's random share of the spread (as drawn): the rms of `u`."""
+        return float(np.sqrt(np.mean(self.u**2)))
+
+    @property
+    def u_mp(self) -> float:
+        """Standard uncertainty of one measured value (as drawn, mm): the rms of the
+        parts' `u` combined with `u_systematic`."""
+        return math.hypot(self.u_gauge, self.u_systematic)
+
+    @property
+    def U_mp(self) -> float:  # noqa: N802 - the symbol of the standard
+        """Expanded uncertainty of the measuring process, `coverage_factor * u_mp`."""
+        return self.coverage_factor * self.u_mp
+
+    @property
+    def q_mp(self) -> float:
+        """Capability ratio of the measuring process, $Q_{MP} = 2 U_{MP} / T$."""
+        lo, hi = self.tolerance
+        return 2.0 * self.U_mp / (hi - lo)
+
+    @property
+    def measuring_process_capable(self) -> bool:
+        """True when `q_mp` is within `q_mp_limit`."""
+        return self.q_mp <= self.q_mp_limit
+
+    @property
+    def judged_by(self) -> tuple[str, float]:
+        """The index the verdict reads: `("Cpk", cpk)` for a process in statistical
+        control, else `("Ppk", ppk)` (an unstable process has no capability to
+        speak of, only this run's performance; AIAG SPC manual)."""
+        c = self.capability
+        return ("Cpk", c.cpk) if self.stability.in_control else ("Ppk", c.ppk)
+
+    @property
+    def verdict(self) -> str:
+        """`"capable"` (the index of `judged_by` at least `threshold`), `"not capable"`,
+        or, when the measuring process is not capable of the tolerance (`q_mp` above
+        its limit), `"measuring process not capable"`: the spread measured is then as
+        much the gauge's as the process's, and no capability is claimed either way."""
+        if not self.measuring_process_capable:
+            return "measuring process not capable"
+        return "capable" if self.judged_by[1] >= self.threshold else "not capable"
+
+    def verdict_reason(self) -> str:
+        """The verdict in one sentence with its numbers (µm as drawn)."""
+        q, lim = self.q_mp, self.q_mp_limit
+        if not self.measuring_process_capable:
+            return (
+                f"Q_MP = {q:.0%} > {lim:.0%}: the measuring process (U_MP = "
+                f"{self.U_mp * 1e3:.2f} um, k = {self.coverage_factor:g}) takes too much of "
+                f"the tolerance to judge the process; improve or qualify the measurement "
+                f"first (VDA 5)"
+            )
+        name, v = self.judged_by
+        rel = ">=" if v >= self.threshold else "<"
+        why = "" if name == "Cpk" else " (not in statistical control: this run's performance)"
+        return f"{name} {v:.2f} {rel} {self.threshold:g}{why}, Q_MP = {q:.0%} <= {lim:.0%}"
+
     def risks(self, target: float = 0.02) -> tuple[ConformityRisk, ConformityRisk] | None:
         """The global conformity risks of judging this run's parts by their measured
         values (JCGM 106, 9.5; as drawn): the process prior N(mean, sigma_p) with the
@@ -155,7 +230,7 @@ class FeatureCapability:
         which the global consumer's risk is `target`. None when the gauge's u is not
         below the overall spread (the process cannot be told from the gauge)."""
         c = self.capability
-        gauge = float(np.sqrt(np.mean(self.u**2)))
+        gauge = self.u_gauge
         var = c.sigma_overall**2 - gauge**2
         if not (gauge > 0.0 and var > 0.0 and math.isfinite(var)):
             return None
@@ -170,7 +245,7 @@ class FeatureCapability:
         stability and prediction, then the lengths as normal deviations (`*_mm`)."""
         c, b, s = self.capability, self.capability.bayes, self.stability
         k = abs(self.scale)
-        gauge = float(np.sqrt(np.mean(self.u**2)))
+        gauge = self.u_gauge
         row = {
             "feature": self.feature,
             "at": self.characteristic,
@@ -197,6 +272,15 @@ class FeatureCapability:
         row["global_consumer_risk"] = risks[0].global_consumer_risk if risks else math.nan
         row["global_producer_risk"] = risks[0].global_producer_risk if risks else math.nan
         row["guard_band_2pct_drawn_mm"] = risks[1].guard_band if risks else math.nan
+        row["u_mp_drawn_mm"] = self.u_mp
+        row["U_mp_drawn_mm"] = self.U_mp
+        row["q_mp"] = self.q_mp
+        row["q_mp_limit"] = self.q_mp_limit
+        row["measuring_process_capable"] = self.measuring_process_capable
+        cc = self.corrected
+        for name in ("cp", "cpk", "pp", "ppk"):
+            row[f"{name}_corrected"] = math.nan if cc is None else getattr(cc, name)
+        row["verdict"] = self.verdict
         row["in_control"] = s.in_control
         row["n_out_of_control"] = len(s.out_of_control)
         row["step_part"] = self.step_part or ""
@@ -444,13 +528,22 @@ def _feature_capability(
     [`capability_from_values`][]) of the values `y` as drawn (on `coordinate`, `scale`
     times the normal deviation); `AnalysisError` when the indices cannot be had."""
     lo, hi = tolerance
-    gauge = float(np.sqrt(np.mean(uu**2))) if options.subtract_gauge else 0.0
+    u_rms = float(np.sqrt(np.mean(uu**2)))
     if options.sigma_method == "auto":  # individuals: the moving range
         options = replace(options, sigma_method="mr")
-    cap = capability(y, lo, hi, gauge_sd=gauge, options=options)
+    cap = capability(y, lo, hi, gauge_sd=u_rms if options.subtract_gauge else 0.0,
+                     options=options)  # fmt: skip
+    fnotes = []
+    corrected = cap if options.subtract_gauge else None
+    if corrected is None and u_rms > 0.0:
+        try:
+            corrected = capability(y, lo, hi, gauge_sd=u_rms, options=replace(options, bayes=False))
+        except AnalysisError as e:
+            fnotes.append(f"no indices corrected for measurement variation: {e}")
+    elif corrected is None:
+        corrected = cap
     stab = stability_check(y, run_length=options.run_length, trend_length=options.trend_length)
     kw = dict(u_offset=u_off, options=options)
-    fnotes = []
     if not stab.in_control:
         fnotes.append(
             "not in statistical control: Cp/Cpk (within sigma) describe what the "
@@ -471,6 +564,11 @@ def _feature_capability(
         notes=tuple(fnotes),
         coordinate=coordinate,
         scale=float(scale),
+        u_systematic=float(u_off),
+        corrected=corrected,
+        threshold=float(options.threshold),
+        q_mp_limit=float(options.q_mp_limit),
+        coverage_factor=float(options.coverage_factor),
     )
 
 

@@ -284,3 +284,84 @@ def test_a_capability_study_states_the_global_risks_of_judging_its_parts():
         assert row["guard_band_2pct_drawn_mm"] == guarded.guard_band
     wide = D.capability_from_values({"d": y}, {"d": (-0.02, 0.02)}, u={"d": np.full(60, 0.05)})
     assert wide["d"].risks() is None and math.isnan(wide["d"].summary()["global_consumer_risk"])
+
+
+def test_q_mp_states_whether_the_measuring_process_is_capable_of_the_tolerance():
+    """Q_MP = 2 k u_MP / T with u_MP^2 = rms(u)^2 + u_systematic^2 (VDA 5 /
+    ISO 22514-7), by hand: u = 1.2, 1.6 um alternating (rms 1.4142), u_systematic
+    1 um, k = 2: u_MP = 1.7321 um, U_MP = 3.4641 um, on +-20 um Q_MP = 17.3 %:
+    capable of the tolerance. On +-10 um (34.6 % > 30 %) the study refuses to call the
+    process capable, though its Cpk is far above 1.33, and says why; a limit of 40 %
+    set in the study's [capability] table lets it judge again."""
+    rng = np.random.default_rng(5)
+    y = 0.001 * rng.standard_normal(40)  # Cpk ~ 3 on +-10 um
+    u = np.where(np.arange(40) % 2, 0.0012, 0.0016)
+    kw = dict(u={"d": u}, u_systematic={"d": 0.001}, options=CapabilityOptions(bayes=False))
+    wide = D.capability_from_values({"d": y}, {"d": (-0.02, 0.02)}, **kw)["d"]
+    u_mp = math.sqrt((0.0012**2 + 0.0016**2) / 2 + 0.001**2)
+    assert wide.u_mp == pytest.approx(u_mp, rel=1e-12)
+    assert wide.U_mp == pytest.approx(2 * u_mp, rel=1e-12)
+    assert wide.q_mp == pytest.approx(4 * u_mp / 0.04, rel=1e-12)  # 17.3 %
+    assert wide.measuring_process_capable and wide.verdict == "capable"
+    narrow = D.capability_from_values({"d": y}, {"d": (-0.01, 0.01)}, **kw)["d"]
+    assert narrow.q_mp == pytest.approx(4 * u_mp / 0.02, rel=1e-12)  # 34.6 %
+    assert narrow.capability.cpk > 2.0 and narrow.stability.in_control
+    assert narrow.verdict == "measuring process not capable"
+    assert "Q_MP = 35% > 30%" in narrow.verdict_reason()
+    row = narrow.summary()
+    assert row["q_mp"] == narrow.q_mp and row["measuring_process_capable"] is False
+    assert row["verdict"] == "measuring process not capable"
+    text = capability_text(D.capability_from_values({"d": y}, {"d": (-0.01, 0.01)}, **kw))
+    assert "measuring process not capable" in text and "34.6%" in text
+    lenient = CapabilityOptions(bayes=False, q_mp_limit=0.40)
+    kw["options"] = lenient
+    assert D.capability_from_values({"d": y}, {"d": (-0.01, 0.01)}, **kw)["d"].verdict == (
+        "capable"
+    )
+    with pytest.raises(InputError, match="q_mp_limit"):
+        CapabilityOptions(q_mp_limit=0.0)
+
+
+def test_an_unstable_process_is_judged_by_its_performance():
+    """A run with a step half-way is not in statistical control: its within-sigma Cpk
+    says what it could do if stable (high), the verdict reads Ppk (this run)."""
+    rng = np.random.default_rng(8)
+    y = 0.0005 * rng.standard_normal(40) + np.where(np.arange(40) < 20, -0.006, 0.006)
+    f = D.capability_from_values({"d": y}, {"d": (-0.02, 0.02)},
+                                 options=CapabilityOptions(bayes=False))["d"]  # fmt: skip
+    assert not f.stability.in_control
+    assert f.capability.cpk > 1.33 > f.capability.ppk
+    assert f.judged_by == ("Ppk", f.capability.ppk)
+    assert f.verdict == "not capable" and "not in statistical control" in f.verdict_reason()
+
+
+def test_indices_corrected_for_measurement_variation_recover_the_process():
+    """Observed = process + measurement: 400 simulated runs of 50 parts, process
+    N(0, 2 um), each part measured with u = 1.5 um known. The observed overall variance
+    is sigma_p^2 + u^2 on average (6.25 um^2, Pp biased low); the corrected one,
+    s^2 - rms(u)^2, is sigma_p^2 = 4 um^2 within 3 Monte Carlo sds (a closed form:
+    the sd of s^2 is sigma^2 sqrt(2 / (n - 1))). The correction by hand on one run:
+    Cp_corr = T / (6 sqrt(s_w^2 - u^2)), Pp_corr = T / (6 sqrt(s^2 - u^2))."""
+    rng = np.random.default_rng(11)
+    sp, um, n, runs = 0.002, 0.0015, 50, 400
+    opts = CapabilityOptions(bayes=False)
+    var_obs, var_corr = [], []
+    for _ in range(runs):
+        y = sp * rng.standard_normal(n) + um * rng.standard_normal(n)
+        f = D.capability_from_values({"d": y}, {"d": (-0.02, 0.02)},
+                                     u={"d": np.full(n, um)}, options=opts)["d"]  # fmt: skip
+        var_obs.append(f.capability.sigma_overall**2)
+        var_corr.append(f.corrected.sigma_overall**2)
+    mc_sd = (sp**2 + um**2) * math.sqrt(2 / (n - 1)) / math.sqrt(runs)
+    assert abs(np.mean(var_corr) - sp**2) < 3 * mc_sd
+    assert np.mean(var_obs) - sp**2 > 10 * mc_sd  # the observed variance is inflated
+    c, cc = f.capability, f.corrected
+    assert cc.cp == pytest.approx(0.04 / (6 * math.sqrt(c.sigma_within**2 - um**2)), rel=1e-12)
+    assert cc.pp == pytest.approx(0.04 / (6 * math.sqrt(c.sigma_overall**2 - um**2)), rel=1e-12)
+    row = f.summary()
+    assert row["cp_corrected"] == cc.cp and row["ppk_corrected"] == cc.ppk
+    # a gauge wider than the spread: no corrected indices, said in the notes
+    g = D.capability_from_values({"d": y}, {"d": (-0.02, 0.02)},
+                                 u={"d": np.full(n, 0.01)}, options=opts)["d"]  # fmt: skip
+    assert g.corrected is None and math.isnan(g.summary()["cp_corrected"])
+    assert any("corrected for measurement variation" in s for s in g.notes)

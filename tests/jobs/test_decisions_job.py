@@ -364,6 +364,26 @@ def test_capability_over_the_batch_finds_the_tool_change(batch):
     assert len(cs.part_rows()) == 36 * 7 and len(cs.summary_rows()) == 7
 
 
+def test_the_batch_states_whether_its_probe_is_capable_of_each_tolerance(batch):
+    """data/batch (issue 40): every feature's Q_MP = 2 k u_MP / T is stated, the probe
+    is capable of every tolerance (Q_MP <= 30 %), the Ø ±10 um diameters take the most
+    of theirs (about a quarter: u_systematic 2.2 um as drawn), and the verdicts read
+    Ppk because the tool change leaves no feature in statistical control."""
+    _, cs = batch
+    doc = {x["feature"]: x for x in json.loads(capability_json(cs))["features"]}
+    for fid, f in cs.features.items():
+        lo, hi = f.tolerance
+        assert f.q_mp == pytest.approx(4 * f.u_mp / (hi - lo), rel=1e-12)
+        assert 0.0 < f.q_mp <= 0.30 and f.measuring_process_capable, fid
+        assert doc[fid]["q_mp"] == pytest.approx(f.q_mp, rel=1e-12)
+        assert doc[fid]["verdict"] == f.verdict and doc[fid]["verdict_reason"]
+    assert {max(cs.features.values(), key=lambda f: f.q_mp).feature} <= {"dia_24", "dia_30"}
+    assert 0.15 < cs["dia_24"].q_mp <= 0.30
+    assert cs["dia_24"].verdict == "not capable" and cs["face_end"].verdict == "capable"
+    assert "Ppk" in cs["dia_24"].verdict_reason()
+    assert "Q_MP" in capability_text(cs)
+
+
 def test_capability_dataframes_are_its_csvs(batch):
     import io
 

@@ -4,6 +4,7 @@ Bayesian Cpk, stability findings and the charts."""
 from __future__ import annotations
 
 from ..figures import capability_chart_figure, capability_index_figure
+from ..tables import percent
 from .model import Fig, Para, Pre, Table, interval_text, num
 
 #: the drawn coordinate in a table cell
@@ -44,6 +45,29 @@ def _after_row(fc) -> list[str]:
         stab,
         f"{p.cpk:.2f} {interval_text(p.cpk_ci)}",
         f"{pw.cpk:.2f} {interval_text(pw.cpk_ci)}",
+    ]
+
+
+def _process_row(fc) -> list[str]:
+    """A feature's measuring process (Q_MP), its indices corrected for the
+    measurement's spread, the global risks of judging a part, and the verdict."""
+    cc, risks = fc.corrected, fc.risks()
+    if risks is None:
+        cr = pr = gb = "–"
+    else:
+        cr, pr = (percent(r) for r in (risks[0].global_consumer_risk,
+                                       risks[0].global_producer_risk))  # fmt: skip
+        gb = num(risks[1].guard_band, ".2f")
+    return [
+        fc.feature,
+        num(fc.U_mp, ".2f"),
+        f"{fc.q_mp:.1%}" + ("" if fc.measuring_process_capable else " (over limit)"),
+        "–" if cc is None else f"{cc.cp:.2f}",
+        "–" if cc is None else f"{cc.cpk:.2f}",
+        cr,
+        pr,
+        gb,
+        f"{fc.verdict}: {fc.verdict_reason()}",
     ]
 
 
@@ -109,6 +133,29 @@ def capability_section(res) -> list:
             "target by the compensation, overall spread kept; 'if stable': with the within "
             "spread (if compensation also removed drift and steps).",
         ),
+        Table(
+            [
+                "feature",
+                "U_MP (µm)",
+                "Q_MP",
+                "Cp corr.",
+                "Cpk corr.",
+                "consumer's risk",
+                "producer's risk",
+                "guard band 2 % (µm)",
+                "verdict",
+            ],
+            [_process_row(fc) for fc in cap.features.values()],
+            caption="Can the probe judge the tolerance, and what does judging a part risk? "
+            "U_MP = k u_MP, the expanded uncertainty of one measured value (the parts' fit "
+            "uncertainties with the study's systematic budget); Q_MP = 2 U_MP / T, at most "
+            f"{_limits(cap)} (VDA 5 / ISO 22514-7), else no capability is claimed. 'corr.': "
+            "Cp, Cpk with the measurement's share taken off the spread (σp² = σ² − rms(u)²). "
+            "Risks: global consumer's and producer's risks of judging a part by its "
+            "measured value against the tolerance (JCGM 106, 9.5), and the guard band that "
+            "brings the consumer's risk to 2 %. The verdict reads Cpk, or Ppk for a process "
+            "not in statistical control.",
+        ),
     ]
     if findings:
         blocks.append(Pre(findings, caption="Stability findings and notes"))
@@ -126,3 +173,7 @@ def capability_section(res) -> list:
         ),
     ]
     return blocks
+
+
+def _limits(cap) -> str:
+    return ", ".join(sorted({f"{fc.q_mp_limit:.0%}" for fc in cap.features.values()}))

@@ -23,4 +23,5 @@ from ._jobs import capability_text as capability_text
 from ._jobs import decisions_csv as decisions_csv
 from ._jobs import decisions_json as decisions_json
 from ._jobs import decisions_text as decisions_text
+from ._jobs import percent as percent
 from ._jobs import risk_text as risk_text

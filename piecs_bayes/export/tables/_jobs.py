@@ -145,6 +145,8 @@ def capability_json(study) -> str:
                     "step_t": s.step_t,
                     "findings": f.findings(),
                 },
+                "verdict_reason": f.verdict_reason(),
+                "corrected_for_measurement": (None if f.corrected is None else f.corrected.table()),
                 "predicted": _predicted_json(f.predicted),
                 "predicted_within": _predicted_json(f.predicted_within),
                 "notes": list(f.notes),
@@ -175,6 +177,39 @@ def capability_json(study) -> str:
         "features": [json_safe(f) for f in feats],
     }
     return json.dumps(doc, indent=2) + "\n"
+
+
+def _process_lines(study) -> list[str]:
+    """The measuring process (VDA 5 Q_MP), the indices corrected for measurement
+    variation, the global risks (JCGM 106) and the verdict, one row per feature."""
+    h = (
+        f"{'feature':<10}{'U_MP um':>8}{'Q_MP':>7}{'Cp corr':>8}{'Cpk corr':>9}"
+        f"{'consumer':>10}{'producer':>10}{'GB 2% um':>9}  verdict"
+    )
+    out = [h, "-" * len(h)]
+    for f in study.features.values():
+        cc, risks = f.corrected, f.risks()
+        cp, cpk = ("-", "-") if cc is None else (f"{cc.cp:.2f}", f"{cc.cpk:.2f}")
+        cr, pr, gb = (("-",) * 3 if risks is None else
+                      (percent(risks[0].global_consumer_risk),
+                       percent(risks[0].global_producer_risk),
+                       f"{risks[1].guard_band * 1e3:.2f}"))  # fmt: skip
+        out.append(
+            f"{f.feature:<10}{f.U_mp * 1e3:>8.2f}{f.q_mp:>7.1%}{cp:>8}{cpk:>9}{cr:>10}{pr:>10}"
+            f"{gb:>9}  {f.verdict}"
+        )
+    lim = sorted({f"{f.q_mp_limit:.0%}" for f in study.features.values()})
+    ks = sorted({f"{f.coverage_factor:g}" for f in study.features.values()})
+    out.append(
+        f"U_MP = k u_MP (k = {', '.join(ks)}), u_MP^2 = rms(u_fit)^2 + u_systematic^2 (the "
+        f"study's budget); Q_MP = 2 U_MP / T, capable of the tolerance at most "
+        f"{', '.join(lim)} (VDA 5 / ISO 22514-7); above it no capability is claimed. 'corr': "
+        "Cp, Cpk with the measurement's share taken off (sigma_p^2 = sigma^2 - rms(u_fit)^2). "
+        "consumer / producer: global risks of judging a part by its measured value against "
+        "the tolerance (JCGM 106, 9.5); GB 2%: the guard band for a 2 % consumer's risk. "
+        "verdict: Cpk against the threshold (Ppk for a process not in statistical control)."
+    )
+    return out
 
 
 def capability_text(study) -> str:
@@ -227,6 +262,7 @@ def capability_text(study) -> str:
             f"{f.feature:<10}{bayes}  {stab:<27}{p.cpk:>10.2f}{_ci(p.cpk_ci):>15}"
             f"{pw.cpk:>10.2f}{_ci(pw.cpk_ci):>15}"
         )
+    lines += ["", *_process_lines(study)]
     lines += [
         "",
         "Cp, Cpk: within sigma (moving range), chi-square and Bissell intervals; Pp, Ppk: "

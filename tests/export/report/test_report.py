@@ -264,6 +264,8 @@ def test_capability_section_with_several_parts():
     body = " ".join(p.text["capability"])
     assert len(p.imgs["capability"]) == 2
     assert "Cpk" in body and "part01" in body
+    assert "Q_MP" in body and "consumer's risk" in body and "verdict" in body
+    assert res.capability["dia_24"].verdict in body
 
 
 def test_progress_lines_go_to_a_callable():
