@@ -8,9 +8,11 @@
   variance components with intervals, %GRR, ndc, the average-and-range cross-check)
   and, with a type-1 study in the file, the budget of system and process (Q_MS, Q_MP);
   writes ``gauge_grr.json`` and ``gauge_grr.png``.
+- ``gauge-study program FILE [--out DIR]``: the type-1 program of ``[type1.program]``
+  and ``type1_plan.json``; its control file is then ``[type1] probe_file``.
 
-FILE is a gauge-study file (TOML, docs/formats.md "Gauge study"). Bad input exits 2
-with one line (mapped by ``cli.main``); a gauge that is not capable is a result (0).
+FILE: a gauge-study file (docs/formats.md "Gauge study"). Bad input exits 2 with one
+line; a gauge that is not capable is a result (0).
 """
 
 from __future__ import annotations
@@ -47,6 +49,13 @@ def register(subparsers) -> None:
             "Gauge R&R by ANOVA (parts x appraisers x trials): components, %GRR, ndc, "
             "the average-and-range cross-check; with a type-1 study also Q_MS and Q_MP.",
             cmd_grr,
+        ),
+        (
+            "program",
+            "The type-1 study run by the machine: the gauging program that touches the "
+            "reference [type1.program] repeats times, and type1_plan.json to read the "
+            "control's probe file back ([type1] probe_file).",
+            cmd_program,
         ),
     ):
         s = sub.add_parser(
@@ -121,3 +130,22 @@ def cmd_type1(args, console) -> int:
 
 def cmd_grr(args, console) -> int:
     return _run(args, console, "grr")
+
+
+def cmd_program(args, console) -> int:
+    from ..io import write_text_atomic
+    from ..jobs import gauge_type1_program
+
+    study, files = gauge_type1_program(args.file)
+    console.step(f"read {study!r}")
+    out = out_dir(args, study)
+    p = study.type1.program
+    console.say(
+        f"type-1 program: {p.repeats} touches of the {p.surface} at "
+        f"{'Z' if p.characteristic == 'diameter' else 'X'} {p.at:g} mm with a "
+        f"{p.ball_diameter:g} mm ball, {p.controller}; run it, then name the control's "
+        "file as [type1] probe_file (and plan) and run `gauge-study type1`"
+    )
+    written = [write_text_atomic(out / n, t, protect=study.inputs) for n, t in files.items()]
+    finish(console, out, written)
+    return 0

@@ -8,7 +8,7 @@ Many parts: `fit_study_batch`, capability studies in chunks, in-process or on Da
 (`capability_study`), `path_uncertainty_batch`, `feedback_study`. Also: the coverage
 check (`coverage_check`), the study's settings (`fit_options`, ...), a study from a part
 program (`init_study`), the probe plan (`plan_study`), a probe's r(theta) (`calibrate_probe`),
-the route (`apply_route`), the gauge studies (`gauge_type1_study`, `gauge_rr_study`).
+the route (`apply_route`), gauge studies (`gauge_type1_study`, `gauge_rr_study`, ...).
 
 Each name is imported from its module when first used (`__getattr__`, PEP 562): a
 command pays only for the jobs it runs (`fit` imports neither the G-code reader nor
@@ -46,6 +46,8 @@ _EXPORTS = {
     "GaugeStudy": "_gauge_study",
     "gauge_rr_study": "_gauge_study",
     "gauge_type1_study": "_gauge_study",
+    "Type1Program": "_gauge_program",
+    "gauge_type1_program": "_gauge_study",
     "FeatureFeedback": "_feedback",
     "FeedbackResult": "_feedback",
     "FeedbackSettings": "_feedback",

@@ -23,11 +23,21 @@ import numpy as np
 from ..errors import InputError
 from ..io import read_bytes
 from ..msa import MsaSettings, Reference
+from ._gauge_program import PLAN_NAME, Type1Program, type1_program, type1_readings
 
 _MM_PER = {"mm": 1.0, "in": 25.4}
 _KEYS = {
     "gauge": ("name", "units", "tolerance", "resolution"),
-    "type1": ("readings", "reference", "expanded_uncertainty", "coverage_factor"),
+    "type1": (
+        "readings",
+        "reference",
+        "expanded_uncertainty",
+        "coverage_factor",
+        "probe_file",
+        "probe_format",
+        "plan",
+        "program",
+    ),  # fmt: skip
     "grr": ("readings", "appraiser"),
     "uncertainty": ("bias_corrected", "system", "process"),
     "settings": tuple(f.name for f in fields(MsaSettings)),
@@ -43,6 +53,7 @@ class Type1Data:
     readings: np.ndarray
     reference: Reference
     file: str
+    program: Type1Program | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,8 +95,9 @@ class GaugeStudyFile:
         return f"GaugeStudyFile({self.name!r}, T={self.tolerance:g} mm, studies {has})"
 
 
-def read_gauge_study(path) -> GaugeStudyFile:
-    """Read and check a gauge-study file and the CSVs it names (module docstring)."""
+def read_gauge_study(path, *, readings: bool = True) -> GaugeStudyFile:
+    """Read and check a gauge-study file and the CSVs it names (module docstring);
+    `readings=False`: not the type-1 readings (to write the program that takes them)."""
     path = Path(path)
     name = str(path)
     try:
@@ -109,7 +121,7 @@ def read_gauge_study(path) -> GaugeStudyFile:
         path=path, name=_text(gauge, "name", "gauge", name), units=units,
         tolerance=_number(gauge, "tolerance", "gauge", name) * mm,
         resolution=_number(gauge, "resolution", "gauge", name) * mm,
-        type1=_type1(tree, path, mm), grr=_grr(tree, path, mm),
+        type1=_type1(tree, path, mm, readings), grr=_grr(tree, path, mm),
         system=_sources(unc, "system", name, mm), process=_sources(unc, "process", name, mm),
         bias_corrected=bias_corrected, settings=_settings(tree, name),
     )  # fmt: skip
@@ -168,7 +180,7 @@ def _text(table: dict, key: str, section: str, name: str) -> str:
     return v.strip()
 
 
-def _type1(tree: dict, path: Path, mm: float) -> Type1Data | None:
+def _type1(tree: dict, path: Path, mm: float, readings: bool = True) -> Type1Data | None:
     if "type1" not in tree:
         return None
     t, name = tree["type1"], str(path)
@@ -178,12 +190,32 @@ def _type1(tree: dict, path: Path, mm: float) -> Type1Data | None:
         _number(t, "expanded_uncertainty", "type1", name, why=cert) * mm,
         _number(t, "coverage_factor", "type1", name, why=cert),
     )
+    program = t.get("program")
+    if program is not None:
+        if not isinstance(program, dict):
+            raise InputError("[type1] program must be a table ([type1.program])", file=name)
+        program = type1_program(program, ref.value, mm, name)
+    if not readings:
+        return Type1Data(np.empty(0), ref, name, program)
+    if "probe_file" in t:  # the control's file of the type-1 program, read against its plan
+        if "readings" in t:
+            raise InputError("[type1] has both readings and probe_file: give one", file=name)
+        files = {k: t.get(k, d) for k, d in (("probe_file", None), ("plan", PLAN_NAME))}
+        for key, v in files.items():
+            if not isinstance(v, str) or not v.strip():
+                raise InputError(f"[type1] {key}: expected a file name, got {v!r}", file=name)
+        fmt = t.get("probe_format")
+        if fmt is not None and not isinstance(fmt, str):
+            raise InputError(f"[type1] probe_format: expected a name, got {fmt!r}", file=name)
+        probe = path.parent / files["probe_file"]
+        x = type1_readings(probe, path.parent / files["plan"], fmt)
+        return Type1Data(x, ref, str(probe), program)
     if isinstance(t.get("readings"), list):  # inline: [type1] readings = [40.0012, ...]
         x = [_float(v, f"readings[{i}]", None, name) for i, v in enumerate(t["readings"])]
-        return Type1Data(np.array(x) * mm, ref, name)
+        return Type1Data(np.array(x) * mm, ref, name, program)
     values, file = _readings(t, "type1", path, ("reading",), ("time",))
     x = np.array([_float(row["reading"], "reading", line, file) for line, row in values]) * mm
-    return Type1Data(x, ref, file)
+    return Type1Data(x, ref, file, program)
 
 
 def _readings(t: dict, section: str, path: Path, required, optional):

@@ -26,6 +26,7 @@ from ..msa import (
     uncertainty_budget,
 )
 from ._gauge_file import GaugeStudyFile, read_gauge_study
+from ._gauge_program import PLAN_NAME, type1_gauging
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,3 +140,14 @@ def gauge_rr_study(study, *, settings: MsaSettings | None = None) -> GaugeStudy:
         return GaugeStudy(s, "grr", None, grr, None, (note,))
     t1 = _type1(s, st)
     return GaugeStudy(s, "grr", t1, grr, _budget(s, t1, grr, st))
+
+
+def gauge_type1_program(study) -> tuple[GaugeStudyFile, dict[str, str]]:
+    """The file (read without its type-1 readings) and the type-1 gauging program of
+    its `[type1.program]` with the plan its probe file is read against:
+    `{file name: text}` (`jobs._gauge_program`)."""
+    s = study
+    if not isinstance(s, GaugeStudyFile):
+        s = read_gauge_study(Path(study), readings=False)
+    name, program, plan = type1_gauging(s)
+    return s, {name: program, PLAN_NAME: plan}
