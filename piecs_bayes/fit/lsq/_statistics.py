@@ -5,7 +5,8 @@ report the same numbers.
 
 The covariance is $\sigma^2 (J_w^TJ_w)^{-1}$ for the linear loss (with the residual
 variance when `sigma` is not given); for a robust loss Huber's (1981) estimate without
-`sigma`, and the sandwich with the final weights held fixed with it. A point is an
+`sigma`, and with it the sandwich with the final weights held fixed, scaled to the
+M-estimator's variance at the normal (`losses.fixed_weight_factor`). A point is an
 outlier when its robust weight is below the weight of a residual of three robust
 standard deviations. A solution is SUCCESSFUL only if the Gauss-Newton step left is
 negligible (`STATIONARY_RTOL`): a solver that merely stopped moving is STALLED, never an
@@ -137,8 +138,10 @@ def _covariance(info, mask, sigma, s_final, loss: FinalLoss, dof, rss):
         factor, robust_ok = _huber_factor(info, mask, s_final, loss, p, n_f, dof_f)
     cov = factor * a_inv
     if loss.robust:
-        # known sigma: weighted least squares with the final weights held fixed
+        # known sigma: weighted least squares with the final weights held fixed,
+        # scaled to the M-estimator's variance at the normal
         sandwich, singular_w = _fixed_weight_sandwich(info, sigma, n, p)
+        sandwich = losses.fixed_weight_factor_of(loss.idx) * sandwich
         singular = singular | (sigma_given & singular_w)
         cov = jnp.where(sigma_given, sandwich, cov)
     cov = 0.5 * (cov + cov.T)

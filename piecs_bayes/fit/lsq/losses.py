@@ -9,7 +9,8 @@ weighted residual and $s$ the *scale*. Named losses (`LOSS_NAMES`): `"linear"`,
 $\rho(0)=0$, $\rho'(0)=1$. `TUNING` holds each loss's tuning constant (about 95 %
 efficiency at the normal), [`mad_sigma`][] the robust standard deviation
 $1.4826\,\mathrm{MAD}$ that, times the constant, is the default scale, and
-[`normal_variance_factor`][] the loss's variance factor at the normal.
+[`normal_variance_factor`][] the loss's variance factor at the normal,
+[`fixed_weight_factor`][] what the fixed-weight sandwich misses of it.
 
 Which loss when: docs/models/least_squares.md, "Losses".
 """
@@ -180,3 +181,35 @@ def normal_variance_factor(loss: str) -> float:
     dpsi = np.asarray(psi_prime(idx, v))
     w = np.exp(-0.5 * u * u) / np.sqrt(2.0 * np.pi) * (u[1] - u[0])
     return float(np.sum(w * psi**2) / np.sum(w * dpsi) ** 2 * c * c)
+
+
+@functools.lru_cache(maxsize=16)
+def fixed_weight_factor(loss: str) -> float:
+    r"""$\kappa/\kappa_w$ at the standard normal, for the named loss at its tuning
+    constant: the M-estimator's variance factor $\kappa$ ([`normal_variance_factor`][])
+    over the fixed-weight sandwich's $\kappa_w = E[w^2]/E[w]^2$ ($w = \rho'$, the IRLS
+    weight). The sandwich $\sigma^2 A^{-1}(J^TW^2J)A^{-1}$, $A = J^TWJ$, holds the final
+    weights fixed although they follow the residuals: at the normal it is
+    $\kappa_w\sigma^2(J^TJ)^{-1}$, short of the estimator's variance by this factor
+    (1 for `"linear"`; Huber 1.040, i.e. 2.0 % in the standard error)."""
+    import numpy as np
+
+    idx = loss_id(loss)
+    if idx == 0:
+        return 1.0
+    c = TUNING[LOSS_NAMES[idx]]
+    u = np.linspace(-12.0, 12.0, 48001)
+    w = np.asarray(rho_prime(idx, jnp.asarray((u / c) ** 2)))
+    p = np.exp(-0.5 * u * u)
+    kappa_w = float(np.sum(p * w * w) * np.sum(p) / np.sum(p * w) ** 2)
+    return normal_variance_factor(loss) / kappa_w
+
+
+def fixed_weight_factor_of(idx):
+    """[`fixed_weight_factor`][] for loss number `idx` (an int or a traced integer);
+    1 for a custom loss (its factor is not tabulated)."""
+    with jax.ensure_compile_time_eval():  # constants, also when asked while tracing
+        table = [fixed_weight_factor(name) for name in LOSS_NAMES] + [1.0]
+    if isinstance(idx, int):
+        return table[min(idx, CUSTOM)]
+    return jnp.asarray(table)[jnp.clip(idx, 0, CUSTOM)]
