@@ -1,7 +1,7 @@
-"""Feedback policies over simulated production runs, as shops run them (issues 17, 28).
+"""Feedback policies over simulated production runs, as shops run them (issues 17, 28, 41).
 
     .venv/bin/python benchmarks/bench_feedback.py [--runs 1000] [--parts 50] [--seed 17]
-        [--train-runs N] [--gain-runs N] [--only name,name]
+        [--train-runs N] [--gain-runs N] [--only name,name] [--jobs N] [--train-prior RUNS]
 
 Each scenario simulates `--runs` test runs of `--parts` parts of one feature on a
 turning centre (normal deviation, mm; µm below): a setup offset N(0, 4²) at part 0,
@@ -26,7 +26,16 @@ known per part, tolerance ±10 µm, and
 - `tool change, declared`: the tool-change runs as a controller logs them (the change
   declared to every policy; the new insert's wear starts from zero);
 - `gain 0.7-1.3`: wear 0.15 µm/part, and a correction acts at a gain drawn per run in
-  U(0.7, 1.3) (the policies assume 1).
+  U(0.7, 1.3) (the policies assume 1);
+- outside the tracker's training mix (issue 41; `OUTSIDE`): `level walk`, a level
+  random walk of 2-4 µm/part (drawn per run) with a scatter of 0.3 µm, where full
+  feedback is nearly best; `wear reverses`, a drift that runs linearly from +a to -a
+  over the run, a = ±U(0.3, 0.6) µm/part (thermal growth that turns).
+
+The tracker's prior weights (`GRID_PRIOR_WEIGHTS`) are fitted with `--train-prior RUNS`
+on training runs (seeds [seed, 3000 + i]) of the first twelve scenarios and of
+`TRAIN_ONLY` (wear 0.6-1.0 µm/part; a level walk of 1-3 µm/part, scatter 0.5 µm, wear
+0.15), by maximum marginal likelihood (EM over the grid's factors).
 
 **Two comparisons.** (a) *as a shop tunes*: each anchor (`fixed_gain`, `mean_value`,
 `ewma`, `dewma`) gets ONE setting of `TUNING_GRIDS` for all scenarios, the one with
@@ -43,7 +52,9 @@ wear rate as the normal with its mean and sd), inspect 1/5 and delay 1; by momen
 matching where a size is drawn from a non-normal law (step ±5-15 µm as N(0, 10.4²),
 odd parts ±20-50 µm as N(0, 36²), scatter x2-5 as its rms, 5.4 µm; the warm-up's rate
 as a decaying drift with the mean decay); not defined (`-`) for power wear (not a
-linear state-space model) and gain (the model has no gain).
+linear state-space model) and gain (the model has no gain); `level walk` exactly (the
+walk's rms); `wear reverses` as a drift random walk whose change over the run has the
+true change's mean square (the drift's linear turn is not in the family).
 
 **Floors.** `floor`: the true level of every part but the first known before it is
 cut (no policy can beat it); `floor, past known`: the levels of the parts already cut
@@ -72,6 +83,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import numpy as np  # noqa: E402
 
 from piecs_bayes.feedback._policies import TUNING_GRIDS, replay_runs  # noqa: E402
+from piecs_bayes.feedback._replay import ANCHORS as _LOOP_ANCHORS  # noqa: E402
 from piecs_bayes.feedback._tracking import TrackModel  # noqa: E402
 
 UM = 1e-3
@@ -79,8 +91,15 @@ TOL = (-10 * UM, 10 * UM)
 ISSUE17 = ("noise", "slow drift", "fast drift", "tool change", "outliers", "noise x2-5")
 NEW = ("power wear", "warm-up", "inspect 1/5", "delay 1", "tool change, declared",
        "gain 0.7-1.3")  # fmt: skip
-SCENARIOS = ISSUE17 + NEW
-ANCHORS = ("fixed_gain", "mean_value", "ewma", "dewma")
+SCENARIOS_TODAY = ISSUE17 + NEW
+OUTSIDE = ("level walk", "wear reverses")
+"""Test scenarios outside the tracker's training mix: a level random walk of 2-4
+µm/part with a scatter of 0.3 µm (full feedback nearly best), and a drift that runs
+from +a to -a over the run (a ~ ±U(0.3, 0.6) µm/part: thermal growth that turns)."""
+SCENARIOS = SCENARIOS_TODAY + OUTSIDE
+ANCHORS = tuple(a for a in _LOOP_ANCHORS if a not in ("none", "full"))
+"""Every anchor the loop replays with settings to tune (the controllers' own rules
+included as they are added); `none` and `full` are shown, not compared."""
 LOOP = {"inspect 1/5": (5, 0), "delay 1": (1, 1)}  # (inspect_every, delay)
 GAINS = (0.5, 0.75, 1.0, 1.5, 2.0)
 _STEP = float(np.sqrt((5**2 + 5 * 15 + 15**2) / 3))  # rms of U(5, 15) µm
@@ -95,7 +114,9 @@ def simulate(scenario: str, runs: int, parts: int, rng) -> dict:
     level = rng.normal(0.0, 4.0, (runs, 1)) + np.zeros((runs, parts))
     scatter = np.full((runs, 1), 1.5)
     wear = {"noise": (0.0, 0.0), "slow drift": (0.1, 0.2), "fast drift": (0.3, 0.5),
-            "power wear": (0, 0), "warm-up": (0, 0)}.get(scenario, (0.15, 0.15))  # fmt: skip
+            "power wear": (0, 0), "warm-up": (0, 0), "level walk": (0, 0),
+            "wear reverses": (0, 0), "very fast wear": (0, 0),
+            }.get(scenario, (0.15, 0.15))  # fmt: skip
     rate = rng.uniform(*wear, (runs, 1))
     level = level + rate * k
     odd = np.zeros((runs, parts))
@@ -125,6 +146,17 @@ def simulate(scenario: str, runs: int, parts: int, rng) -> dict:
         level = level + amp * (1.0 - np.exp(-k / tau))
     if scenario == "gain 0.7-1.3":
         gain = rng.uniform(0.7, 1.3, runs)
+    if scenario in ("level walk", "wandering level"):  # a level random walk
+        lo, hi, sc = (2.0, 4.0, 0.3) if scenario == "level walk" else (1.0, 3.0, 0.5)
+        walk = rng.uniform(lo, hi, (runs, 1)) * rng.standard_normal((runs, parts))
+        walk[:, 0] = 0.0
+        level = level + np.cumsum(walk, axis=1)
+        scatter = np.full((runs, 1), sc)
+    if scenario == "wear reverses":  # the drift runs from +a to -a (or back) over the run
+        amp = rng.uniform(0.3, 0.6, (runs, 1)) * rng.choice([-1.0, 1.0], (runs, 1))
+        level = level + amp * (k - k**2 / (parts - 1))
+    if scenario == "very fast wear":
+        level = level + rng.uniform(0.6, 1.0, (runs, 1)) * k
     u = rng.uniform(0.8, 1.2, (runs, parts))
     dev = level + scatter * rng.standard_normal((runs, parts)) + odd
     dev = dev + u * rng.standard_normal((runs, parts))
@@ -149,6 +181,10 @@ def known_model(scenario: str) -> TrackModel | None:
         "inspect 1/5": {},
         "delay 1": {},
         "tool change, declared": {},
+        "level walk": dict(drift0_mean=0.0, scatter_sd=0.3 * UM,
+                           level_sd=float(np.sqrt(28 / 3)) * UM),  # rms of U(2, 4)
+        "wear reverses": dict(drift0_mean=0.0, drift0_sd=float(np.sqrt(0.21)) * UM,
+                              drift_sd=2 * float(np.sqrt(0.21)) / 7 * UM),
     }  # fmt: skip
     if scenario not in over:
         return None
@@ -254,6 +290,75 @@ def gain_sweep(runs, parts, seed, shop):
     return table
 
 
+TRAIN_ONLY = ("very fast wear", "wandering level")
+"""Training processes outside the benchmark's scenarios: wear 0.6-1.0 µm/part, and a
+level random walk of 1-3 µm/part (scatter 0.5 µm, wear 0.15) where full feedback is
+nearly best."""
+
+
+def train_prior(runs: int, parts: int, seed: int, iters: int = 300, shrink: float = 0.5):
+    """The prior weights of the tracker's grid factors (`GRID_PRIOR_WEIGHTS`): those
+    that maximise the marginal likelihood of the training runs (EM: each factor's
+    weight is the mean posterior share of its entries over the runs; the scatter kept
+    uniform), shrunk by `shrink` towards uniform (robustness to processes outside the
+    training mix). The training runs: every scenario of
+    `SCENARIOS_TODAY` and `TRAIN_ONLY`, `runs` runs each, seeds [seed, 3000 + i] (not
+    the test runs' [seed, i] or the shop tuning's [seed, 1000 + i]); the filter sees the
+    uncompensated deviations (with unit gain the closed loop's values)."""
+    from piecs_bayes.feedback import _tracking as T
+
+    names = SCENARIOS_TODAY + TRAIN_ONLY
+    logs = []
+    for i, sc in enumerate(names):
+        sim = simulate(sc, runs, parts, np.random.default_rng([seed, 3000 + i]))
+        every, _ = LOOP.get(sc, (1, 0))
+        y = sim["dev"].copy()
+        y[:, np.arange(parts) % every != 0] = np.nan
+        declared = np.zeros((runs, parts), dtype=bool)
+        if sim["declared"] is not None:
+            declared[np.arange(runs), sim["declared"]] = True
+        for c in range(0, runs, 25):
+            out = T.run_grid(y[c : c + 25], sim["u"][c : c + 25], declared[c : c + 25],
+                             T.HYPER_GRID, mixture=False)  # fmt: skip
+            logs.append(out["loglik"].sum(2))
+        print(f"[train prior: {sc}]", file=sys.stderr)
+    ll = np.concatenate(logs)
+    if os.environ.get("H41_SAVE"):
+        np.save(os.environ["H41_SAVE"], ll)
+    return fit_prior(ll, iters, shrink)
+
+
+def fit_prior(ll, iters: int = 300, shrink: float = 0.5):
+    """EM of `train_prior` on the log evidence `(runs, G)` of the training runs."""
+    from piecs_bayes.feedback import _tracking as T
+
+    keys = {"scatter": T.GRID_SCATTER, "dynamics": T.GRID_DYNAMICS, "odd": T.GRID_ODD_RATES,
+            "step": T.GRID_STEP_RATES}  # fmt: skip
+    sizes = tuple(len(v) for v in keys.values())
+    grid = np.indices(sizes).reshape(len(sizes), -1)  # the grid's order
+    code = dict(zip(keys, grid, strict=True))
+    w = {f: np.full(len(keys[f]), 1.0 / len(keys[f])) for f in keys}
+    for _ in range(iters):
+        with np.errstate(divide="ignore"):
+            post = ll + sum(np.log(w[f][code[f]]) for f in keys)
+        post = np.exp(post - post.max(1, keepdims=True))
+        post /= post.sum(1, keepdims=True)
+        for f in keys:
+            share = np.bincount(code[f], weights=post.mean(0), minlength=len(keys[f]))
+            w[f] = share / share.sum()
+    w = {f: (1 - shrink) * w[f] + shrink / len(w[f]) for f in w}
+    lp = sum(np.log(w[f][code[f]]) for f in keys)
+    a = ll + lp
+    m = a.max(1, keepdims=True)
+    evidence = float(np.sum(m[:, 0] + np.log(np.exp(a - m).sum(1))))
+    return {f: tuple(round(float(x), 3) for x in w[f]) for f in keys}, evidence
+
+
+def _scenario_job(job):
+    sc, runs, parts, seed, i, shop = job
+    return scenario_rows(sc, simulate(sc, runs, parts, np.random.default_rng([seed, i])), shop)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=1000, help="test runs per scenario")
@@ -262,7 +367,16 @@ def main(argv=None) -> None:
     ap.add_argument("--train-runs", type=int, default=None, help="default: --runs")
     ap.add_argument("--gain-runs", type=int, default=None, help="default: --runs / 5")
     ap.add_argument("--only", default="", help="comma-separated scenarios (development)")
+    ap.add_argument("--jobs", type=int, default=1, help="scenarios replayed in parallel")
+    ap.add_argument("--train-prior", type=int, default=0, metavar="RUNS",
+                    help="fit the grid's prior weights on RUNS training runs per scenario "
+                    "(GRID_PRIOR_WEIGHTS) and stop")  # fmt: skip
     a = ap.parse_args(argv)
+    if a.train_prior:
+        weights, evidence = train_prior(a.train_prior, a.parts, a.seed)
+        print(f"GRID_PRIOR_WEIGHTS = {weights!r}\n# log evidence of the training runs: "
+              f"{evidence:.1f}")  # fmt: skip
+        return
     cols = tuple(s for s in SCENARIOS if not a.only or s in a.only.split(","))
     t_all = time.perf_counter()
     n_train = a.train_runs or a.runs
@@ -271,12 +385,19 @@ def main(argv=None) -> None:
     shop = shop_settings(train)
     print(f"[shop settings: {time.perf_counter() - t_all:.0f} s]", file=sys.stderr)
     results = {}
-    for i, sc in enumerate(SCENARIOS):
-        if sc not in cols:
-            continue
-        sim = simulate(sc, a.runs, a.parts, np.random.default_rng([a.seed, i]))
-        results[sc] = scenario_rows(sc, sim, shop)
-        print(f"[{sc}: {time.perf_counter() - t_all:.0f} s]", file=sys.stderr)
+    jobs = [(sc, a.runs, a.parts, a.seed, i, shop) for i, sc in enumerate(SCENARIOS)
+            if sc in cols]  # fmt: skip
+    if a.jobs > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(a.jobs) as pool:
+            for sc, res in zip(cols, pool.map(_scenario_job, jobs), strict=True):
+                results[sc] = res
+                print(f"[{sc}: {time.perf_counter() - t_all:.0f} s]", file=sys.stderr)
+    else:
+        for job in jobs:
+            results[job[0]] = _scenario_job(job)
+            print(f"[{job[0]}: {time.perf_counter() - t_all:.0f} s]", file=sys.stderr)
     print(f"## Feedback policies as shops run them: {a.runs} test runs x {a.parts} parts per "
           f"scenario ({n_train} training runs per scenario for the shop's tuning, other "
           f"seeds), tolerance ±10 µm\n")  # fmt: skip
@@ -318,21 +439,20 @@ def main(argv=None) -> None:
                 lambda r: _ref(r, "b"))  # fmt: skip
     rk = ratios("bayes / known-process bound", lambda r: r["bayes"][0],
                 lambda r: r["known"][0] if "known" in r else np.nan)  # fmt: skip
+    ratios("*known-process bound / best anchor, shop-tuned*",
+           lambda r: r["known"][0] if "known" in r else None, lambda r: _ref(r, "a"))  # fmt: skip
     ratios("*floor, past known / best anchor, hindsight*", lambda r: r["floor_past"][0],
            lambda r: _ref(r, "b"))  # fmt: skip
     cover = np.array([results[s][1] for s in cols])
     print("| bayes 95 % predictive coverage | " + " | ".join(f"{c:.3f}" for c in cover) + " |")
-    not_noise = [i for i, s in enumerate(cols) if s != "noise"]
-    print(f"\n(a) mean {np.mean(ra):.3f} (target <= 0.90), worst {np.max(ra):.3f} "
+    print(f"\n(a) mean {np.mean(ra):.3f} (target <= 0.97), worst {np.max(ra):.3f} "
           f"({cols[int(np.argmax(ra))]}; target <= 1.00 each).")  # fmt: skip
-    print(f"(b) worst {np.max(rb):.3f} ({cols[int(np.argmax(rb))]}; target <= 1.00 each); "
-          f"mean over all but noise {np.mean(rb[not_noise]):.3f} (target <= 0.95); over all "
-          f"{np.mean(rb):.3f}.")  # fmt: skip
+    print(f"(b) worst {np.max(rb):.3f} ({cols[int(np.argmax(rb))]}); mean {np.mean(rb):.3f}.")
     ok = np.isfinite(rk)
     if np.any(ok):
-        print(f"bayes / known bound: worst {np.nanmax(rk):.3f} "
-              f"({cols[int(np.nanargmax(rk))]}; target <= 1.03), defined for "
-              f"{int(ok.sum())} of {len(cols)}.")  # fmt: skip
+        print(f"bayes / known bound: mean {np.nanmean(rk):.3f} (target <= 1.05), worst "
+              f"{np.nanmax(rk):.3f} ({cols[int(np.nanargmax(rk))]}; target <= 1.10 each), "
+              f"defined for {int(ok.sum())} of {len(cols)}.")  # fmt: skip
     print(f"coverage {cover.min():.3f}-{cover.max():.3f} (target 0.935-0.965 each).\n")
     print("Anchor settings: (a) the shop's one setting; (b) per scenario, hindsight:\n")
     print("| policy | (a) all scenarios | " + " | ".join(cols) + " |")

@@ -2,13 +2,13 @@
 
 - ``feedback STUDY --out DIR [--finish FILE ...] [--no-figures] [--no-report]``:
   fit every part of the run (production order = the study's probe files), track
-  every feature from part to part, replay the feedback policies (``none``, ``full``,
-  ``fixed_gain``, ``mean_value``, ``ewma``, ``dewma``, ``bayes``; each anchor in two
-  labelled comparisons: ``(a)`` the machine's one setting, ``compensate.SHOP_SETTINGS``,
-  and ``(b)`` tuned on the run in hindsight), and write ``feedback.json``, ``feedback_parts.csv``,
-  ``feedback_policies.csv``, ``feedback_next_part.csv`` (and, with finished parts,
-  ``feedback_finish.csv``), the figures and ``feedback_report.html``; the summary
-  and the next part's correction are printed.
+  every feature from part to part, replay the feedback policies (``feedback.POLICIES``:
+  the anchors, among them the controllers' own rules ``siemens``, ``renishaw``,
+  ``heidenhain``, and ``bayes``; each anchor in two labelled comparisons: ``(a)`` the
+  machine's one setting, ``SHOP_SETTINGS``, and ``(b)`` tuned on the run), write
+  ``feedback.json``, ``feedback_parts.csv``, ``feedback_policies.csv``,
+  ``feedback_next_part.csv`` (``feedback_finish.csv``), the figures and
+  ``feedback_report.html``, and print the summary and the next part's correction.
 
 Settings: the study's ``[feedback]`` table (declared tool changes, policies,
 finished-part files, ``inspect_every``, ``delay``). Errors: bad input exits 2, a

@@ -64,12 +64,12 @@ def wear_factor(declared, wear_reset) -> np.ndarray:
     return np.where(declared, 1.0 - rho * since, 1.0)
 
 
-def _ahead(w, a, d, p11, p12, p22, par, fwear, declared, k, horizon):
+def _ahead(w, a, d, p11, p12, p22, par, fwear, declared, hazard, k, horizon):
     """`(B, horizon)` mean and variance of the level of parts k + 1 .. k + horizon given
     the components after part k (as `lm`, `lv`: the regular components and declared
-    steps; an undeclared step at a part in between adds its prior share of variance,
-    as the filter's mixture does at a part not measured): the prediction through parts
-    without a measurement."""
+    steps; an undeclared step at a part in between that carries the hazard, a measured
+    one, adds its prior share of variance): the prediction through parts without a
+    measurement."""
     b, n = declared.shape
     phi = par.get("drift_decay", np.ones(b))[:, None]
     am = np.full((b, horizon), np.nan)
@@ -85,8 +85,9 @@ def _ahead(w, a, d, p11, p12, p22, par, fwear, declared, k, horizon):
         av[:, h - 1] = (
             np.sum(w * (p11 + (a - m[:, None]) ** 2), 1) + step + np.where(dec, par["step2"], 0.0)
         )
-        # a part passed without a measurement may have had an undeclared step
-        step = step + np.where(dec, par["step2"], par["p_step"] * par["step2"])
+        # a part passed may have had an undeclared step (where it carries the hazard)
+        haz = hazard[:, j] if j < n else np.ones(b, dtype=bool)
+        step = step + np.where(dec, par["step2"], np.where(haz, par["p_step"], 0.0) * par["step2"])
     return am, av
 
 
@@ -143,11 +144,13 @@ def _collapse_unseen(lj, mom, c_n):
 
 
 def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int = 0,
-                   feed=None, mixture: bool = True):  # fmt: skip
+                   feed=None, mixture: bool = True, hazard=None):  # fmt: skip
     """Run the collapsed mixture filter on a batch of series.
 
     A part without a measurement (`y` NaN) is a prediction step only: no likelihood, no
-    update, no odd-part indicator (a step may still happen there).
+    update, no odd-part indicator, and no undeclared-step indicator of its own: the
+    step probability `p_step` is a hazard per measurement, carried by the measured part
+    that ends a gap (a step anywhere in the gap moves the level that part shows).
 
     **Arguments:**
 
@@ -167,6 +170,8 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int
       (a closed loop: the value depends on the correction decided from `out` so far);
       `y` is then only the shape (and the values not fed).
     - `mixture`: False skips the predictive mixture `pw`, `pm`, `ps` (memory).
+    - `hazard`: `(n,)` or `(B, n)` booleans, the parts that carry the undeclared-step
+      hazard; default the measured parts (every part with `feed`).
 
     **Returns:** a dict of arrays: `loglik` `(B, n)` (log predictive density of each part;
     0 for a diffuse part 0), `pw`, `pm`, `ps` `(B, n, 3C)` (weights, means and sds of the
@@ -194,6 +199,9 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int
     level0 = par["level0"]
     diffuse = ~np.isfinite(level0)
     p_odd = np.asarray(par["p_odd"])[:, None] * np.ones(n)
+    if hazard is None:
+        hazard = np.ones((b, n), dtype=bool) if feed is not None else ~np.isnan(y)
+    hazard = np.broadcast_to(np.asarray(hazard, dtype=bool), (b, n))
     if feed is None:
         p_odd = np.where(np.isnan(y), 0.0, p_odd)
         if np.any(diffuse & np.isnan(y[:, 0])):
@@ -226,7 +234,8 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int
         if feed is not None:
             y[:, k] = feed(k, out)
         seen = np.isfinite(y[:, k])  # (B,): part k measured
-        pri_k = np.log(np.maximum(_prior_k(np.where(seen, p_odd[:, k], 0.0), par["p_step"],
+        p_step_k = np.where(hazard[:, k], par["p_step"], 0.0)
+        pri_k = np.log(np.maximum(_prior_k(np.where(seen, p_odd[:, k], 0.0), p_step_k,
                                            declared[:, k]), _TINY))  # fmt: skip
         qadd = np.where(declared[:, k : k + 1], 1.0, s_step[None, :]) * step2  # (B, 3) by s_k
         rk = r[:, k : k + 1] + scatter2 + s_odd[None, :] * odd2  # (B, 3) by s_k
@@ -301,7 +310,7 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int
         out["fdv"][:, k] = np.sum(w * (p22 + (d - fd[:, None]) ** 2), 1)
         if ahead:
             out["am"][:, k], out["av"][:, k] = _ahead(
-                w, a, d, p11, p12, p22, par, fwear, declared, k, ahead
+                w, a, d, p11, p12, p22, par, fwear, declared, hazard, k, ahead
             )
     p_odd_lag[:, n - 1] = out["p_filt"][:, n - 1, 1]
     p_step_lag[:, n - 1] = out["p_filt"][:, n - 1, 2]

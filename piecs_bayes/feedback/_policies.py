@@ -1,16 +1,16 @@
 """Feedback over a production run: the policies and the counterfactual replay.
 
-`deviation[k]` is the measured deviation of part $k$ as it would have been cut without
-any feedback correction (mm, normal deviation, + = material left). A policy sets the
-correction of part $k$ from the parts before it only; the correction adds to the part,
-and the realised deviation is all the policy sees. [`replay`][] (one run) and
-[`replay_runs`][] (many) return a [`PolicyResult`][] per policy of `POLICIES`: the
-shop's anchors (`none`, `full`, `fixed_gain`, `mean_value`, `ewma`, `dewma`) and `bayes`
-(the tracking model's predictive handed to the one-part decision, `BAYES_DECISION`).
-[`tune`][] replays every setting of `TUNING_GRIDS[policy]` and keeps the lowest RMS
-deviation (a hindsight advantage `bayes` does not get); `SHOP_SETTINGS` is the one
-setting per anchor for a machine. [`next_part`][] is the `bayes` correction for the
-next part, [`predictive_coverage`][] the share of parts inside their predictive interval.
+`deviation[k]`: part $k$'s deviation as cut without any feedback correction (mm,
+normal, + = material left). A policy sets part $k$'s correction from the parts before
+it only; the correction adds to the part, the realised deviation is all it sees.
+[`replay`][] (one run) and [`replay_runs`][] (many) return a [`PolicyResult`][] per
+policy of `POLICIES`: the anchors (`none`, `full`, `fixed_gain`, `mean_value`, `ewma`,
+`dewma`, the controllers' rules `siemens`, `renishaw`, `heidenhain`) and `bayes` (the
+model's predictive handed to the one-part decision, `BAYES_DECISION`). [`tune`][]
+replays every setting of `TUNING_GRIDS[policy]` and keeps the lowest RMS deviation (a
+hindsight advantage `bayes` does not get); `SHOP_SETTINGS` is the one setting per
+anchor. [`next_part`][] is the `bayes` correction for the next part,
+[`predictive_coverage`][] the share of parts inside their predictive interval.
 
 The policies and the counterfactual: docs/feedback.md, "The policies".
 """
@@ -25,6 +25,7 @@ import numpy as np
 
 from ..decide import DecisionSettings, decide
 from ..errors import InputError
+from ._controllers import CONTROLLERS, check_controller_settings
 from ._replay import anchor_loop, bayes_loop, expand_sampled, held, loop_settings, schedule, window
 from ._tracking import (
     GRID_LOG_PRIOR,
@@ -38,7 +39,7 @@ from ._tracking import (
     transfer_of,
 )
 
-POLICIES = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma", "bayes")
+POLICIES = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma") + CONTROLLERS + ("bayes",)
 
 BAYES_DECISION = DecisionSettings(
     adjustment_cost=0.0, require_significance=False, guard_band_factor=0.0
@@ -62,22 +63,47 @@ TUNING_GRIDS: dict[str, list[dict]] = {
         {"lam1": a, "lam2": b}
         for a, b in itertools.product((0.1, 0.2, 0.3, 0.5, 0.7), (0.02, 0.05, 0.1, 0.2, 0.3))
     ],
+    "siemens": [
+        {"_K": k, "_TZL": z, "_TMV": math.inf, "_TDIF": math.inf, "_TSA": math.inf}
+        for k, z in itertools.product((1, 2, 3, 5, 8), (0.0, 0.002, 0.005, 0.01))
+    ],
+    "renishaw": [
+        {"F": f, "V": v, "U": u}
+        for f, v, u in itertools.product(
+            (0.25, 0.5, 0.75, 1.0), (0.0, 0.002, 0.005, 0.01), (0.05, 0.1, math.inf)
+        )
+    ],
+    "heidenhain": [{"RBREAK": b} for b in (0.0, 0.02, 0.05, 0.1, 0.2)],
     "bayes": [{}],
 }
 """Settings tried by `tune` per policy: `fixed_gain` gain $g$, null band and upper limit
 as fractions of the tolerance half-width; `mean_value` window $K$ (parts); `ewma`
-weight $\\lambda$; `dewma` level and drift weights $\\lambda_1, \\lambda_2$."""
+weight $\\lambda$; `dewma` level and drift weights $\\lambda_1, \\lambda_2$. The
+controllers' rules take what a shop types into the control, in mm: `siemens`
+weighting factor `_K` (1, 2, 3, 5, 8) and zero-offset range `_TZL` (0, 2, 5, 10 µm),
+the outer bands `_TMV`, `_TDIF`, `_TSA` not programmed (inf: a shop sets them per
+feature, from its tolerance, and inside the tolerance only `_TMV` acts); `renishaw`
+feedback `F` (F.25 ... F1: 25 % ... 100 %), null band `V` (0, 2, 5, 10 µm), upper
+tolerance limit `U` (0.05, 0.1 mm, not programmed); `heidenhain` breakage tolerance
+`RBREAK` (0: not monitored, 0.02 ... 0.2 mm)."""
 
 SHOP_SETTINGS: dict[str, dict] = {
     "fixed_gain": {"gain": 0.5, "null_band": 0.0, "upper_limit": 2.0},
     "mean_value": {"k": 3},
     "ewma": {"lam": 0.4},
     "dewma": {"lam1": 0.3, "lam2": 0.05},
+    "siemens": {"_K": 3, "_TZL": 0.002, "_TMV": math.inf, "_TDIF": math.inf, "_TSA": math.inf},
+    "renishaw": {"F": 1.0, "V": 0.0, "U": math.inf},
+    "heidenhain": {"RBREAK": 0.0},
 }
 """One setting per anchor for every run, as a shop tunes a machine once (comparison
 (a) of `benchmarks/bench_feedback.py`): the setting of `TUNING_GRIDS` with the lowest
 mean log RMS over the benchmark's twelve scenarios on its training runs (200 runs per
-scenario, seed 17; other seeds than its test runs)."""
+scenario, seed 17; other seeds than its test runs). The controllers' rules are not tuned
+there: `renishaw` and `heidenhain` take the controls' defaults (Inspection Plus: `F`
+100 %, `V` and `U` not given: no null band, no upper limit; TNC tool table: `RBREAK`
+0, not monitored), `siemens` (no default published for `_K`, `_TZL`) the worked
+example's $k = 3$ and a 2 µm zero-offset range, the outer bands not programmed."""
 
 COMPARISONS = {
     "a": "a: one setting for the machine (SHOP_SETTINGS)",
@@ -95,7 +121,9 @@ class PolicyResult:
     - `rmsd_mm`, `max_abs_mm`: RMS and largest $|r_k|$.
     - `out_of_tolerance`: parts with $r_k$ outside the tolerance.
     - `adjustments`: parts whose correction differs from the previous part's.
-    - `flags`: parts beyond `fixed_gain`'s upper limit (0 for the others).
+    - `flags`: measured parts beyond `fixed_gain`'s upper limit, or on which a
+      controller's rule raises an alarm (`siemens`, `renishaw`, `heidenhain`; 0 for
+      the others).
     """
 
     name: str
@@ -143,6 +171,8 @@ def _check_settings(policy, settings) -> dict:
             f"policy {policy!r}: settings must have exactly {sorted(need)}, got {sorted(st)}",
             value=st,
         )
+    if policy in CONTROLLERS:
+        check_controller_settings(policy, st)
     return st
 
 
@@ -249,10 +279,11 @@ def replay_runs(
     number or `(R,)`, one per run.
 
     **Returns:** `(corrections, flags, pit)`: `(R, n)` corrections (mm), `(R,)` counts
-    of parts beyond `fixed_gain`'s upper limit, and for `bayes` the `(R, n)` predictive
-    cdf of each measured part's uncompensated deviation given the parts before (NaN
-    for part 0 and parts not measured; `None` for the anchors): the share within
-    $[0.025, 0.975]$ is the coverage of the 95 % one-step-ahead predictive intervals.
+    of parts beyond `fixed_gain`'s upper limit or with a controller's alarm, and for
+    `bayes` the `(R, n)` predictive cdf of each measured part's uncompensated
+    deviation given the parts before (NaN for part 0 and parts not measured; `None`
+    for the anchors): the share within $[0.025, 0.975]$ is the coverage of the 95 %
+    one-step-ahead predictive intervals.
     """
     dev = np.asarray(deviations, dtype=float)
     if dev.ndim != 2 or dev.shape[1] < 1:
@@ -275,7 +306,7 @@ def replay_runs(
                             source, gain)  # fmt: skip
         return c, np.zeros(dev.shape[0], dtype=int), pit
     c, flags = anchor_loop(dev, policy, st, 0.5 * (tol[1] - tol[0]), declared, inspected,
-                           source, gain)  # fmt: skip
+                           source, gain, mid=0.5 * (tol[0] + tol[1]))  # fmt: skip
     return c, flags, None
 
 
@@ -348,12 +379,15 @@ def predictive_coverage(track_: Track, values, p: float = 0.95) -> float:
 def _window(z, uz, changes, model, dly, e) -> tuple[float, float, float]:
     """`window` of `_feedback_loop` after the last part of `z` (production order)."""
     models = HYPER_GRID if model is None else (model,)
+    ext = dly + e  # the parts ahead, not measured yet: the schedule says which will be
+    z, uz = np.append(z, np.full(ext, np.nan)), np.append(uz, np.full(ext, uz[-1]))
     declared = np.zeros(z.size, dtype=bool)
     declared[list(changes)] = True
-    out = run_grid(z, uz, declared, models, ahead=dly + e, mixture=False)
+    out = run_grid(z, uz, declared, models, ahead=ext, mixture=False,
+                   hazard=np.arange(z.size) % e == 0)  # fmt: skip
     lp = GRID_LOG_PRIOR if model is None else None
-    w = grid_weights(out["loglik"], lp)[:, :, -1:]
-    j = z.size - 1
+    j = z.size - 1 - ext
+    w = grid_weights(out["loglik"][:, :, : j + 1], lp)[:, :, -1:]
     m, v, spread = window(out["am"][:, :, j, dly:], out["av"][:, :, j, dly:], w)
     return float(m[0]), float(v[0]), float(spread[0])
 

@@ -23,6 +23,13 @@ import numpy as np
 from .. import _config
 from ..decide import DecisionSettings, corrections
 from ..errors import InputError
+from ._controllers import (
+    CONTROLLERS,
+    controller_alarms,
+    heidenhain_step,
+    renishaw_step,
+    siemens_step,
+)
 from ._filter import mixture_filter
 from ._tracking import GRID_LOG_PRIOR, HYPER_GRID, grid_weights, model_params
 
@@ -31,7 +38,7 @@ special = _config.LazyModule("scipy.special")
 
 _CHUNK = 64  # runs filtered at once on the whole grid
 _NO_LIMIT = 1e3  # mm: the decision's own limit, applied by the loop instead (`held`)
-ANCHORS = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma")
+ANCHORS = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma") + CONTROLLERS
 
 
 def loop_settings(ds: DecisionSettings, tolerance) -> tuple[DecisionSettings, float]:
@@ -81,8 +88,9 @@ def _gain(gain, r_) -> np.ndarray:
     return g
 
 
-def anchor_loop(dev, policy, st, half, declared, inspected, source, gain):
-    """Corrections `(R, n)` and flags `(R,)` of an anchor policy in the loop."""
+def anchor_loop(dev, policy, st, half, declared, inspected, source, gain, mid=0.0):
+    """Corrections `(R, n)` and flags `(R,)` of an anchor policy in the loop (`half`,
+    `mid`: the tolerance's half-width and middle; the controllers' alarms as flags)."""
     r_, n = dev.shape
     g = _gain(gain, r_)
     c = np.zeros((r_, n))
@@ -93,6 +101,7 @@ def anchor_loop(dev, policy, st, half, declared, inspected, source, gain):
         return c, flags
     a = np.zeros(r_)
     dd = np.zeros(r_)
+    state = np.zeros(r_)  # siemens: the mean M; heidenhain: the tool locked
     window: list[np.ndarray] = []
     last = -1
     for k in range(1, n):
@@ -113,6 +122,17 @@ def anchor_loop(dev, policy, st, half, declared, inspected, source, gain):
         elif policy == "mean_value":
             window = [e] if reset else (window + [e])[-int(st["k"]) :]
             c[:, k] = -np.mean(window, axis=0)
+        elif policy in CONTROLLERS:
+            if reset:  # a new tool: the rule starts again (the mean cleared, unlocked)
+                state = np.zeros(r_)
+            if policy == "siemens":
+                state, adj = siemens_step(state, real - mid, st, half)
+            elif policy == "renishaw":
+                adj = renishaw_step(real, st)
+            else:
+                locked, adj = heidenhain_step(state.astype(bool), real, st)
+                state = locked.astype(float)
+            c[:, k] = c[:, k - 1] + adj
         elif policy == "ewma":
             a = e if reset else st["lam"] * e + (1.0 - st["lam"]) * a
             c[:, k] = -a
@@ -128,6 +148,8 @@ def anchor_loop(dev, policy, st, half, declared, inspected, source, gain):
     if policy == "fixed_gain":  # every measured part beyond the upper limit
         real = dev + g[:, None] * c
         flags = np.sum((np.abs(real) > st["upper_limit"] * half) & inspected, axis=1)
+    elif policy in CONTROLLERS:
+        flags = controller_alarms(policy, st, dev + g[:, None] * c, inspected, half, mid)
     return c, flags
 
 
@@ -195,7 +217,7 @@ def _bayes_chunk(dev, u, declared, tolerance, ds, model, transfer, inspected, so
     out = mixture_filter(
         np.zeros((r_ * ng, n)), np.repeat(u**2, ng, axis=0), par,
         np.repeat(np.broadcast_to(np.atleast_2d(declared), (r_, n)), ng, axis=0),
-        ahead=horizon, feed=feed, mixture=False,
+        ahead=horizon, feed=feed, mixture=False, hazard=inspected,
     )  # fmt: skip
     loglik = out["loglik"].reshape(r_, ng, n)
     wts = grid_weights(loglik, log_prior)

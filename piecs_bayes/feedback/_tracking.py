@@ -90,37 +90,95 @@ class TrackModel:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
-_GRID_SCATTER = (0.3, 0.6, 1.0, 1.6, 2.5, 4.0, 6.5, 10.0, 16.0)  # µm
-_GRID_LEVEL = ((0.0, 0.45), (0.2, 0.45), (1.0, 0.1))  # µm per part, prior weight
+GRID_SCATTER = (0.3, 0.6, 1.1, 2.0, 3.5, 6.0, 10.0, 16.0)  # µm
+U_REF = 1.0 * _UM
+"""The measurement uncertainty (mm) the grid's walks are relative to: a model of the
+grid with EWMA weight $\\lambda$ has the level walk
+$\\sigma_\\ell^2 = \\lambda^2/(1-\\lambda)\\,(\\sigma_e^2 + u_{ref}^2)$, so that on parts
+measured with $u = u_{ref}$ its steady-state Kalman gain is $\\lambda$."""
 _WEAR = 0.3  # µm/part: the scale of a wear rate (half-normal)
-_GRID_DRIFT = (  # (drift0_mean µm/part, drift0_sd µm/part, drift_sd, drift_decay), weight
-    ((0.0, 0.0, 0.0, 1.0), 0.45),  # no drift
-    ((_WEAR * math.sqrt(2 / math.pi), _WEAR * math.sqrt(1 - 2 / math.pi), 0.0, 1.0), 0.35),
-    ((0.0, _WEAR, 0.0, 1.0), 0.05),  # a drift of either sign (thermal)
-    ((1.2, 0.8, 0.05, 0.95), 0.10),  # a new edge: fast wear, slowing
-    ((0.0, 6.0, 0.0, 0.6), 0.05),  # a transient of either sign (warm-up)
-)
-_GRID_ODD = ((0.002, 0.8), (0.05, 0.2))  # (outlier_prob, prior weight)
-_GRID_STEP = ((0.005, 0.5), (0.02, 0.5))  # (step_prob, prior weight)
+_DRIFTS = {  # (drift0_mean µm/part, drift0_sd µm/part, drift_sd µm/part², drift_decay)
+    "none": (0.0, 0.0, 0.0, 1.0),
+    "wear": (_WEAR * math.sqrt(2 / math.pi), _WEAR * math.sqrt(1 - 2 / math.pi), 0.0, 1.0),
+    "either": (0.0, _WEAR, 0.0, 1.0),  # a drift of either sign (thermal)
+    "new edge": (1.2, 0.8, 0.05, 0.95),  # fast wear, slowing
+    "transient": (0.0, 6.0, 0.0, 0.6),  # a transient of either sign (warm-up)
+}
+GRID_DYNAMICS = (  # (EWMA weight of the level walk, drift, drift-walk ratio), weight
+    # every EWMA: lambda 0 (a fixed level) to 0.95 (full feedback's limit), relative to
+    # the noise; the drifts where a level walk leaves them to be told apart; and two
+    # local linear trends (double EWMA: a drift that wanders, relative to the noise)
+    # weights: GRID_PRIOR_WEIGHTS, trained (benchmarks/bench_feedback.py --train-prior)
+    (0.0, "none", 0.0), (0.0, "wear", 0.0), (0.0, "either", 0.0), (0.0, "new edge", 0.0),
+    (0.0, "transient", 0.0),
+    (0.1, "none", 0.0), (0.1, "wear", 0.0), (0.1, "either", 0.0),
+    (0.25, "none", 0.0), (0.25, "wear", 0.0), (0.25, "new edge", 0.0),
+    (0.5, "none", 0.0), (0.5, "wear", 0.0),
+    (0.7, "none", 0.0), (0.85, "none", 0.0), (0.95, "none", 0.0),
+    (0.1, "either", 0.01), (0.25, "either", 0.05),
+)  # fmt: skip
+GRID_ODD_RATES = (0.002, 0.05)  # outlier_prob
+GRID_STEP_RATES = (0.005, 0.02)  # step_prob, per measurement
+GRID_PRIOR_WEIGHTS: dict[str, tuple[float, ...]] = {
+    "scatter": (0.062, 0.062, 0.337, 0.253, 0.073, 0.086, 0.063, 0.062),
+    "dynamics": (0.034, 0.401, 0.028, 0.063, 0.072, 0.028, 0.029, 0.028, 0.028, 0.028,
+                 0.028, 0.029, 0.048, 0.046, 0.028, 0.028, 0.028, 0.028),
+    "odd": (0.719, 0.281),
+    "step": (0.75, 0.25),
+}  # fmt: skip
+"""Prior weights of the grid's factors: `scatter` per `GRID_SCATTER`, `dynamics` per
+entry of `GRID_DYNAMICS`, `odd` per outlier rate, `step` per undeclared-step rate:
+trained on the benchmark's training runs by maximum marginal likelihood and shrunk
+halfway to uniform (`benchmarks/bench_feedback.py --train-prior 100`; docs/feedback.md,
+"The model")."""
 
 
-def _grid_points():
-    return itertools.product(_GRID_SCATTER, _GRID_LEVEL, _GRID_DRIFT, _GRID_ODD, _GRID_STEP)
+def ewma_ratio(lam: float) -> float:
+    """$\\sigma_\\ell / \\sqrt{\\sigma_e^2 + u^2}$ of the local level whose steady-state
+    Kalman gain is the EWMA weight `lam`: $\\lambda / \\sqrt{1 - \\lambda}$."""
+    return lam / math.sqrt(1.0 - lam)
 
 
-def _grid() -> tuple[TrackModel, ...]:
-    return tuple(
-        TrackModel(
-            level_sd=lv * _UM, drift_sd=dsd * _UM, scatter_sd=sc * _UM, drift0_sd=d0 * _UM,
-            drift0_mean=mu * _UM, drift_decay=phi, outlier_prob=po, outlier_scale=40 * _UM,
-            step_prob=ps, step_sd=10 * _UM,
-        )
-        for sc, (lv, _), ((mu, d0, dsd, phi), _), (po, _), (ps, _) in _grid_points()
+def ewma_weight(model: TrackModel) -> float:
+    """The EWMA weight of a model's level walk (the inverse of [`ewma_ratio`][]): the
+    steady-state gain of its local level on parts measured with `U_REF`."""
+    q = model.level_sd**2
+    r = model.scatter_sd**2 + U_REF**2
+    if q == 0:
+        return 0.0
+    p = (q + math.sqrt(q * q + 4 * q * r)) / 2
+    return p / (p + r)
+
+
+def grid_points():
+    """The points of `HYPER_GRID` in its order: `((scatter µm, weight), (dynamics,
+    weight), (odd rate, weight), (step rate, weight))`, the weights those of
+    `GRID_PRIOR_WEIGHTS`."""
+    return itertools.product(
+        zip(GRID_SCATTER, GRID_PRIOR_WEIGHTS["scatter"], strict=True),
+        zip(GRID_DYNAMICS, GRID_PRIOR_WEIGHTS["dynamics"], strict=True),
+        zip(GRID_ODD_RATES, GRID_PRIOR_WEIGHTS["odd"], strict=True),
+        zip(GRID_STEP_RATES, GRID_PRIOR_WEIGHTS["step"], strict=True),
+    )
+
+
+def _model(sc, dyn, po, ps) -> TrackModel:
+    lam, drift, walk = dyn
+    mu, d0, dsd, phi = _DRIFTS[drift]
+    noise = math.hypot(sc * _UM, U_REF)
+    return TrackModel(
+        level_sd=ewma_ratio(lam) * noise, drift_sd=dsd * _UM + walk * noise,
+        scatter_sd=sc * _UM, drift0_sd=d0 * _UM, drift0_mean=mu * _UM, drift_decay=phi,
+        outlier_prob=po, outlier_scale=40 * _UM, step_prob=ps, step_sd=10 * _UM,
     )  # fmt: skip
 
 
+def _grid() -> tuple[TrackModel, ...]:
+    return tuple(_model(sc, dyn, po, ps) for (sc, _), (dyn, _), (po, _), (ps, _) in grid_points())
+
+
 def _grid_log_prior() -> np.ndarray:
-    w = [wl * wd * wo * ws for _, (_, wl), (_, wd), (_, wo), (_, ws) in _grid_points()]
+    w = [wc * wd * wo * ws for (_, wc), (_, wd), (_, wo), (_, ws) in grid_points()]
     lp = np.log(np.asarray(w) / np.sum(w))
     lp.flags.writeable = False
     return lp
@@ -130,10 +188,8 @@ HYPER_GRID: tuple[TrackModel, ...] = _grid()
 """The empirical-Bayes grid of [`TrackModel`][]s (see the module doc)."""
 
 GRID_LOG_PRIOR: np.ndarray = _grid_log_prior()
-"""Log prior weights of `HYPER_GRID` (see the module doc): uniform over the scatter;
-level walk 0 / 0.2 / 1 µm/part 0.45, 0.45, 0.1; drift none / wear / either sign / new
-edge / transient 0.45, 0.35, 0.05, 0.10, 0.05; odd-part rate 0.2 % / 5 % 0.8 / 0.2;
-undeclared-step rate 0.5 % / 2 % 1/2 each."""
+"""Log prior weights of `HYPER_GRID`: the product of its factors' `GRID_PRIOR_WEIGHTS`
+(scatter, dynamics, odd-part rate, undeclared-step rate), normalised."""
 
 
 @dataclass(frozen=True)
@@ -155,6 +211,9 @@ class Track:
     - `steps`: indices of the steps (declared ones and those with `p_step` > 0.5).
     - `model`: the model used (the grid's best when averaged); `weights`: grid weights
       after the run (`None` for a fixed model); `loglik`: log marginal likelihood.
+    - `weights_by_part`: `(n + 1, G)` the grid's weights before each part (row k from
+      the evidence of parts $< k$; row n is `weights`): which models the run favours
+      as it goes (`None` for a fixed model); [`Track.ewma_weight`][] sums them up.
     """
 
     pred_mean: np.ndarray
@@ -179,10 +238,21 @@ class Track:
     weights: np.ndarray | None
     loglik: float
     transfer: tuple[float, float] = (1.0, 0.0)
+    weights_by_part: np.ndarray | None = None
 
     @property
     def n(self) -> int:
         return int(self.level.size)
+
+    def ewma_weight(self) -> np.ndarray:
+        """`(n + 1,)` the EWMA weight equivalent to the favoured level walk before each
+        part: the posterior mean over the grid of the local level's steady-state gain
+        $\\lambda$ with $\\sigma_\\ell^2/(\\sigma_e^2 + u_{ref}^2) = \\lambda^2/(1-\\lambda)$
+        (`U_REF`; NaN for a fixed model)."""
+        if self.weights_by_part is None:
+            return np.full(self.n + 1, np.nan)
+        lam = np.array([ewma_weight(m) for m in HYPER_GRID])
+        return self.weights_by_part @ lam
 
     def pit(self, values) -> np.ndarray:
         """The predictive cdf at `values` per part (probability integral transform)."""
@@ -418,6 +488,7 @@ def track(values, u, *, model: TrackModel | None = None, tool_changes=(), transf
         tool_changes=tuple(int(t) for t in np.flatnonzero(declared)),
         model=best,
         weights=None if model is not None else _ro(fin),
+        weights_by_part=None if model is not None else _ro(wts[0].T),
         loglik=float(special.logsumexp(out["loglik"][0].sum(1) + (0.0 if model is not None
                                                                     else GRID_LOG_PRIOR))),
         transfer=(beta, u_beta),

@@ -22,7 +22,10 @@ from types import MappingProxyType
 from ._reader import Reader
 
 #: the replayed policies (`feedback.POLICIES`; a test keeps the two equal)
-FEEDBACK_POLICIES = ("none", "full", "fixed_gain", "mean_value", "ewma", "dewma", "bayes")
+FEEDBACK_POLICIES = (
+    "none", "full", "fixed_gain", "mean_value", "ewma", "dewma", "siemens", "renishaw",
+    "heidenhain", "bayes",
+)  # fmt: skip
 
 #: the keys of `[feedback]` (for the schema check of the whole study file)
 FEEDBACK_KEYS = ("tool_changes", "policies", "finish_files", "characteristic", "inspect_every",

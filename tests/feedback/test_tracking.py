@@ -10,9 +10,16 @@ import pytest
 from piecs_bayes.errors import InputError
 from piecs_bayes.feedback._filter import STEP_MEMORY, mixture_filter
 from piecs_bayes.feedback._tracking import (
+    GRID_DYNAMICS,
     GRID_LOG_PRIOR,
+    GRID_ODD_RATES,
+    GRID_PRIOR_WEIGHTS,
+    GRID_SCATTER,
+    GRID_STEP_RATES,
     HYPER_GRID,
+    U_REF,
     TrackModel,
+    ewma_ratio,
     fit_track_model,
     fit_transfer,
     model_params,
@@ -175,29 +182,40 @@ def test_a_declared_tool_change_restarts_the_wear():
 
 
 def test_the_grid_prior():
-    """The drift of the grid (issue 28): none (0.45), wear of the edge, which only leaves
-    material, a half-normal rate of scale 0.3 µm/part by its mean and sd (0.35), either
-    sign (0.05), a new edge's fast wear that slows (0.10: 1.2 ± 0.8 µm/part decaying by
-    0.95 per part, its rate wandering by 0.05), a transient of either sign (0.05: a
-    warm-up, ± 6 µm/part decaying by 0.6 per part); the level walk 0, 0.2 and 1 µm/part
-    (0.45, 0.45, 0.1)."""
+    """The grid (issue 41): per factor the trained weights of `GRID_PRIOR_WEIGHTS`:
+    the scatter, the dynamics (an EWMA weight of the level walk relative to
+    the noise, a drift: none, wear of the edge, which only leaves material, a
+    half-normal rate of scale 0.3 µm/part by its mean and sd, either sign, a new edge's
+    fast wear that slows, a transient of either sign; a drift walk), the odd-part and
+    the undeclared-step rates."""
     w = np.exp(GRID_LOG_PRIOR)
     assert w.sum() == pytest.approx(1.0) and len(w) == len(HYPER_GRID)
 
     def share(pick):
         return sum(wi for wi, g in zip(w, HYPER_GRID, strict=True) if pick(g))
 
-    assert share(lambda g: g.drift0_sd == 0) == pytest.approx(0.45)
-    assert share(lambda g: g.drift0_mean > 0 and g.drift_decay == 1) == pytest.approx(0.35)
+    for f, values, attr in (("odd", GRID_ODD_RATES, "outlier_prob"), ("step", GRID_STEP_RATES,
+                                                                   "step_prob")):  # fmt: skip
+        wf = np.array(GRID_PRIOR_WEIGHTS[f]) / np.sum(GRID_PRIOR_WEIGHTS[f])
+        for v, wv in zip(values, wf, strict=True):
+            assert share(lambda g, a=attr, v=v: getattr(g, a) == v) == pytest.approx(wv)
+    ws = np.array(GRID_PRIOR_WEIGHTS["scatter"]) / np.sum(GRID_PRIOR_WEIGHTS["scatter"])
+    for sc, wv in zip(GRID_SCATTER, ws, strict=True):
+        assert share(lambda g, sc=sc: g.scatter_sd == pytest.approx(sc * UM)) == pytest.approx(wv)
+    wd = np.array(GRID_PRIOR_WEIGHTS["dynamics"]) / np.sum(GRID_PRIOR_WEIGHTS["dynamics"])
+    assert len(wd) == len(GRID_DYNAMICS)
+    fixed = share(lambda g: g.level_sd == 0 and g.drift0_sd == 0)
+    assert fixed == pytest.approx(wd[GRID_DYNAMICS.index((0.0, "none", 0.0))])
     wear = next(g for g in HYPER_GRID if g.drift0_mean > 0)
     assert wear.drift0_mean == pytest.approx(0.3 * UM * math.sqrt(2 / math.pi))
     assert wear.drift0_sd == pytest.approx(0.3 * UM * math.sqrt(1 - 2 / math.pi))
-    assert share(lambda g: g.drift_decay == 0.95 and g.drift0_mean > 0) == pytest.approx(0.10)
-    assert share(lambda g: g.drift_decay == 0.6 and g.drift0_mean == 0) == pytest.approx(0.05)
-    assert share(lambda g: g.level_sd > 0.5 * UM) == pytest.approx(0.10)
-    assert share(lambda g: g.step_prob < 0.01) == pytest.approx(0.5)
     assert all(g.wear_reset == 1 for g in HYPER_GRID)
-    assert all(g.drift_sd == 0 for g in HYPER_GRID if g.drift_decay == 1)
+    walks = {(lam, walk) for lam, _, walk in GRID_DYNAMICS}
+    assert {0.0, 0.95} <= {lam for lam, _ in walks} and max(w_ for _, w_ in walks) > 0
+    for g in HYPER_GRID:  # the level walk is an EWMA weight of the grid times the noise
+        noise = math.hypot(g.scatter_sd, U_REF)
+        assert any(g.level_sd == pytest.approx(ewma_ratio(lam) * noise, abs=1e-15)
+                   for lam, _ in walks)  # fmt: skip
 
 
 def test_diffuse_start_is_the_limit_of_a_wide_prior():

@@ -43,7 +43,8 @@ def _policy_table(res) -> Table:
         caption="RMS realised deviation per policy, as drawn (µm on the feature's "
         "coordinate; 'all': the normal deviation over every feature and part), on the "
         "counterfactual that a correction adds to the following parts. Two comparisons "
-        "for the anchors (fixed_gain, mean_value, ewma, dewma): (a) the one setting a shop "
+        "for the anchors (fixed_gain, mean_value, ewma, dewma and the controllers' own "
+        "rules siemens, renishaw, heidenhain): (a) the one setting a shop "
         "tunes for the machine (compensate.SHOP_SETTINGS, the same for every run); (b) "
         "tuned on this run over their documented grids (a hindsight advantage bayes does "
         "not get; full is not tuned). bayes has fixed settings; green: the lowest.",
@@ -68,7 +69,9 @@ def _settings_table(res) -> Table:
                   caption="The anchors' settings per feature ((a): the machine's one "
                   "setting; (b): tuned on this run; fixed_gain: gain, null "
                   "band and upper limit as fractions of the tolerance half-width; "
-                  "mean_value: window K; ewma: λ; dewma: λ1, λ2).")  # fmt: skip
+                  "mean_value: window K; ewma: λ; dewma: λ1, λ2; siemens: _K, _TZL, "
+                  "_TMV, _TDIF, _TSA (mm); renishaw: F (fraction), V, U (mm); "
+                  "heidenhain: RBREAK (mm); inf: not programmed).")  # fmt: skip
 
 
 def _next_table(res) -> Table:
