@@ -473,3 +473,14 @@ def test_known_sigma_covariance_is_the_scatter_of_the_estimate(loss):
     scatter = np.var(np.asarray(out.params_flat), axis=0, ddof=1)
     stated = np.mean(np.diagonal(np.asarray(out.covariance), axis1=1, axis2=2), axis=0)
     assert np.all(np.abs(scatter / stated - 1.0) < 0.03), scatter / stated
+
+
+def test_the_tabulated_fixed_weight_factors_are_the_integrals():
+    """A fit reads `FIXED_WEIGHT_FACTORS` (no integration per process); each is the
+    integral of `fixed_weight_factor` at the loss's tuning constant, to 1e-12."""
+    from piecs_bayes.fit.lsq import losses
+
+    computed = [losses.fixed_weight_factor(name) for name in losses.LOSS_NAMES]
+    np.testing.assert_allclose(losses.FIXED_WEIGHT_FACTORS, computed, rtol=1e-12)
+    assert losses.fixed_weight_factor_of(1) == losses.FIXED_WEIGHT_FACTORS[1]
+    assert float(losses.fixed_weight_factor_of(jnp.asarray(7))) == 1.0  # a custom loss
