@@ -6,7 +6,7 @@ each module of piecs_bayes belongs to the layer of its top-level package:
 
     cli > export > jobs > simulate > uncertainty > feedback
         > gcode | fit | compensate | decide | capability | msa > io > geometry
-        > errors | _config
+        > errors | _config | intervals
 
 A module imports only its own package and the layers below it; siblings of one
 layer (`gcode | fit | compensate`, `errors | _config`) do not import each other;
@@ -44,7 +44,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("gcode", "fit", "compensate", "decide", "capability", "msa"),
     ("io",),
     ("geometry",),
-    ("errors", "_config"),
+    ("errors", "_config", "intervals"),
 )
 RANK = {top: rank for rank, layer in enumerate(LAYERS) for top in layer}
 BOTTOM = set(LAYERS[-1])

@@ -8,32 +8,14 @@ docs/models/capability.md.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .. import _config
 from ..errors import InputError
+from ..intervals import Interval as Interval
 
 stats = _config.LazyModule("scipy.stats")  # on first use: a fast start
-
-
-@dataclass(frozen=True)
-class Interval:
-    """A two-sided interval `[lower, upper]` at probability/confidence `level`."""
-
-    lower: float
-    upper: float
-    level: float
-
-    def __iter__(self):
-        return iter((self.lower, self.upper))
-
-    def __contains__(self, value: float) -> bool:
-        return self.lower <= value <= self.upper
-
-    def __repr__(self) -> str:
-        return f"[{self.lower:.4g}, {self.upper:.4g}] ({self.level:.0%})"
 
 
 NAN_INTERVAL = (math.nan, math.nan)

@@ -1,48 +1,19 @@
 """Confidence intervals of a measuring-system analysis, vectorised over studies.
 
-[`Interval`][] holds one; the functions take arrays (one value per simulated study)
-and return the bounds: Student-t for a mean, chi-square for a standard deviation and
-for a ratio to it (Cg), Bissell's normal approximation for Cgk, and the modified
-large-sample (MLS) method of Ting, Burdick & Graybill for a linear combination of
-mean squares (the variance components of a gauge R&R). Derivations and measured
-coverage: docs/msa.md.
+[`Interval`][] (`piecs_bayes.intervals`) holds one; the functions take arrays (one
+value per simulated study) and return the bounds: Student-t for a mean, chi-square
+for a standard deviation and for a ratio to it (Cg), Bissell's normal approximation
+for Cgk, and the modified large-sample (MLS) method of Ting, Burdick & Graybill for a
+linear combination of mean squares (the variance components of a gauge R&R).
+Derivations and measured coverage: docs/msa.md.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy import stats
 
-
-@dataclass(frozen=True)
-class Interval:
-    """A two-sided interval `[lower, upper]` at confidence `level`."""
-
-    lower: float
-    upper: float
-    level: float
-
-    def __iter__(self):
-        return iter((self.lower, self.upper))
-
-    def __contains__(self, value: float) -> bool:
-        return self.lower <= value <= self.upper
-
-    def __repr__(self) -> str:
-        return f"[{self.lower:.4g}, {self.upper:.4g}] ({self.level:.0%})"
-
-    def scaled(self, factor: float) -> Interval:
-        """The interval of `factor` times the quantity (`factor` > 0)."""
-        return Interval(self.lower * factor, self.upper * factor, self.level)
-
-    def sqrt(self) -> Interval:
-        """The interval of the square root (a variance's interval -> its sd's)."""
-        return Interval(float(np.sqrt(self.lower)), float(np.sqrt(self.upper)), self.level)
-
-    def as_dict(self) -> dict:
-        return {"lower": self.lower, "upper": self.upper, "level": self.level}
+from ..intervals import Interval as Interval
 
 
 def t_bounds(estimate, std_error, df, level: float):
