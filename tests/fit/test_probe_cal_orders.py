@@ -79,7 +79,7 @@ def test_auto_on_the_half_sphere_keeps_the_orders_the_data_can_vouch_for():
             own = _nominal_u(sim["theta"], orders[name], TARGETS)
             np.testing.assert_allclose(row["u_model_mm"], np.sqrt(np.mean(own**2)), rtol=1e-9)
         assert row["u_mm"] >= rows["[2, 3]"]["u_mm"] * (1 - 1e-12)
-        assert row["u_mm"] >= row["u_model_mm"]
+        assert row["u_mm"] >= row["u_model_mm"] * (1 - 1e-12)  # equal where no shift
     assert min(r["u_mm"] for r in rows.values()) == rows["[2, 3]"]["u_mm"]
     # what the reduced models would state if they held: one radius 0.66 um, orders 3 0.96
     assert rows["[]"]["u_model_mm"] == pytest.approx(0.00066, abs=1e-5)

@@ -33,6 +33,9 @@ RC = {
     "figure.dpi": 100,
     "savefig.dpi": 110,
     "axes.grid": True,
+    # titles at the top of their axes: no figure puts ticks or labels above an axes,
+    # and matplotlib's automatic title position measured every x axis at each draw
+    "axes.titley": 1.0,
     "grid.alpha": 0.3,
     "pdf.fonttype": 42,  # TrueType: the PDF's text can be searched and extracted
     "svg.fonttype": "none",
@@ -50,9 +53,11 @@ def param_unit(name: str) -> tuple[float, str]:
 
 
 def new_figure(figsize, **kw):
+    """A Figure with constrained layout (`layout=None`: margins set by the caller)."""
     from matplotlib.figure import Figure
 
-    return Figure(figsize=figsize, layout="constrained", **kw)
+    kw.setdefault("layout", "constrained")
+    return Figure(figsize=figsize, **kw)
 
 
 def grid_axes(n, ncols):
