@@ -66,8 +66,30 @@ def _line_normal(f) -> np.ndarray:
 
 def point_distance(p, polyline: np.ndarray) -> np.ndarray:
     """Distance of each point `(k, 2)` to a polyline `(m, 2)`."""
+    return _point_segments(p, polyline[:-1], polyline[1:])
+
+
+#: segments per array operation in `_usable` (memory: points x this x a few floats)
+_SEGMENT_CHUNK = 2048
+
+
+def _least(distance, a, b) -> np.ndarray:
+    """`distance(a, b)` (a distance per point to the nearest segment) over the segments
+    `a[m]`-`b[m]` taken `_SEGMENT_CHUNK` at a time: the least per point."""
+    parts = [distance(a[i : i + _SEGMENT_CHUNK], b[i : i + _SEGMENT_CHUNK])
+             for i in range(0, len(a), _SEGMENT_CHUNK)]  # fmt: skip
+    return np.min(parts, axis=0)
+
+
+def _segments(polylines) -> tuple[np.ndarray, np.ndarray]:
+    """The segments `(a, b)`, each `(m, 2)`, of polylines, all in one array."""
+    return (np.concatenate([p[:-1] for p in polylines]),
+            np.concatenate([p[1:] for p in polylines]))  # fmt: skip
+
+
+def _point_segments(p, a, b) -> np.ndarray:
+    """Distance of each point `(k, 2)` to the nearest of the segments `a[m]`-`b[m]`."""
     p = np.atleast_2d(np.asarray(p, dtype=float))
-    a, b = polyline[:-1], polyline[1:]
     d = b - a
     dd = np.maximum(np.sum(d * d, axis=1), 1e-300)
     w = p[:, None, :] - a[None]
@@ -124,8 +146,14 @@ def rising_distance(q, n, start, centre, polyline: np.ndarray) -> np.ndarray:
     """Least distance from each probe move `start[k]`-`centre[k]` to the part of
     `polyline` above the tangent at contact `q[k]` (outward normal `n[k]`): the only
     part the ball can touch before `q[k]` (inf where there is none)."""
+    return _rising_segments(q, n, start, centre, polyline[:-1], polyline[1:])
+
+
+def _rising_segments(q, n, start, centre, a, b) -> np.ndarray:
+    """[`rising_distance`][] to the segments `a[m]`-`b[m]` (of one polyline or many:
+    the least over all of them)."""
     q, n = np.atleast_2d(q), np.atleast_2d(n)
-    a, b = polyline[None, :-1], polyline[None, 1:]
+    a, b = a[None], b[None]
     ha = np.sum((a - q[:, None]) * n[:, None], axis=-1)
     hb = np.sum((b - q[:, None]) * n[:, None], axis=-1)
     rise = hb - ha
@@ -164,18 +192,23 @@ def junction_points(profile, index: int) -> list[np.ndarray]:
 
 
 def _usable(profile, index: int, t, ball_radius, end_clearance, standoff, polys):
-    """Which fractions `t` of feature `index` are usable contact points (module doc)."""
+    """Which fractions `t` of feature `index` are usable contact points (module doc).
+    Every other feature's segments are checked in one array (the least distance over
+    all of them against one threshold: the same test as feature by feature)."""
     f = profile.features[index]
     t = np.atleast_1d(np.asarray(t, dtype=float))
     q, n, c = ball_centres(f, t, ball_radius)
     s = c + standoff * n
     slack = 2.0 * CHORD_ERROR_MM  # the chords of a concave arc lie inside it
     ok = point_distance(c, polys[index]) >= ball_radius - slack  # not cutting into its own
-    for j, poly in enumerate(polys):
-        if j != index:
-            ok &= rising_distance(q, n, s, c, poly) >= ball_radius + end_clearance - slack
-        if standoff > 0.0:
-            ok &= point_distance(s, poly) >= ball_radius + standoff - slack
+    others = [poly for j, poly in enumerate(polys) if j != index]
+    if others:
+        rising = _least(lambda a, b: _rising_segments(q, n, s, c, a, b), *_segments(others))
+        ok &= rising >= ball_radius + end_clearance - slack
+    if standoff > 0.0:
+        ok &= _least(lambda a, b: _point_segments(s, a, b), *_segments(polys)) >= (
+            ball_radius + standoff - slack
+        )
     for edge in junction_points(profile, index):
         gap = _segment_gaps(s, c, edge[None, None], edge[None, None])[:, 0]
         ok &= gap >= ball_radius + end_clearance - slack
