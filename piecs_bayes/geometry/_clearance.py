@@ -81,6 +81,16 @@ def _least(distance, a, b) -> np.ndarray:
     return np.min(parts, axis=0)
 
 
+def _near(a, b, points, reach):
+    """The segments `a[m]`-`b[m]` whose bounding box comes nearer than `reach` (+1 nm)
+    to the bounding box of `points`: the others are at least `reach` from every point
+    and every segment between them, so a test `distance >= reach` passes without them."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    gap = np.maximum(0.0, np.maximum(np.minimum(a, b) - hi, lo - np.maximum(a, b)))
+    keep = np.hypot(gap[:, 0], gap[:, 1]) <= reach + 1e-6
+    return a[keep], b[keep]
+
+
 def _segments(polylines) -> tuple[np.ndarray, np.ndarray]:
     """The segments `(a, b)`, each `(m, 2)`, of polylines, all in one array."""
     return (np.concatenate([p[:-1] for p in polylines]),
@@ -202,13 +212,17 @@ def _usable(profile, index: int, t, ball_radius, end_clearance, standoff, polys)
     slack = 2.0 * CHORD_ERROR_MM  # the chords of a concave arc lie inside it
     ok = point_distance(c, polys[index]) >= ball_radius - slack  # not cutting into its own
     others = [poly for j, poly in enumerate(polys) if j != index]
+    moves = np.concatenate([s, c])
     if others:
-        rising = _least(lambda a, b: _rising_segments(q, n, s, c, a, b), *_segments(others))
-        ok &= rising >= ball_radius + end_clearance - slack
+        need = ball_radius + end_clearance - slack
+        a, b = _near(*_segments(others), moves, need)
+        if len(a):
+            ok &= _least(lambda a, b: _rising_segments(q, n, s, c, a, b), a, b) >= need
     if standoff > 0.0:
-        ok &= _least(lambda a, b: _point_segments(s, a, b), *_segments(polys)) >= (
-            ball_radius + standoff - slack
-        )
+        need = ball_radius + standoff - slack
+        a, b = _near(*_segments(polys), s, need)
+        if len(a):
+            ok &= _least(lambda a, b: _point_segments(s, a, b), a, b) >= need
     for edge in junction_points(profile, index):
         gap = _segment_gaps(s, c, edge[None, None], edge[None, None])[:, 0]
         ok &= gap >= ball_radius + end_clearance - slack
