@@ -204,7 +204,8 @@ def junction_points(profile, index: int) -> list[np.ndarray]:
 def _usable(profile, index: int, t, ball_radius, end_clearance, standoff, polys):
     """Which fractions `t` of feature `index` are usable contact points (module doc).
     Every other feature's segments are checked in one array (the least distance over
-    all of them against one threshold: the same test as feature by feature)."""
+    all of them against one threshold: the same test as feature by feature), those
+    too far to fail it left out first (`_near`)."""
     f = profile.features[index]
     t = np.atleast_1d(np.asarray(t, dtype=float))
     q, n, c = ball_centres(f, t, ball_radius)

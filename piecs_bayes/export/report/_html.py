@@ -105,9 +105,9 @@ def png_bytes(fig, dpi: float | None = None) -> bytes:
 
     A plot's pixels are a few thousand shades of the lines' antialiased edges, and a
     palette of 256 keeps each within a few levels of 255 (47 at worst on the
-    translucent traces). Compressing 24-bit pixels was most of the time of a figure
-    after its drawing (1.5 s of the demo's seven, again in the PDF, which embeds a
-    figure of at most 256 colours indexed), and makes the HTML three times larger."""
+    translucent traces). The PDF embeds a figure of at most 256 colours indexed
+    instead of compressing its 24-bit pixels a second time, and the HTML is a third
+    of the size (docs/models/report.md, "Drawn once, written small")."""
     from PIL import Image
 
     raw = io.BytesIO()  # matplotlib's own PNG, stored without compression
@@ -116,9 +116,9 @@ def png_bytes(fig, dpi: float | None = None) -> bytes:
     with Image.open(raw) as im:
         rgba = im.convert("RGBA")
         info = {k: v for k, v in im.info.items() if k == "dpi"}
-    rgb = Image.new("RGBA", rgba.size, "white")
-    rgb.alpha_composite(rgba)
-    pal = rgb.convert("RGB").quantize(
+    flat = Image.new("RGBA", rgba.size, "white")  # on white, as the page shows it
+    flat.alpha_composite(rgba)
+    pal = flat.convert("RGB").quantize(
         PNG_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE
     )
     buf = io.BytesIO()
