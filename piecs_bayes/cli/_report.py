@@ -90,7 +90,10 @@ def run_job_from_args(args, console):
     from ..errors import InputError
     from ..jobs import JobOptions, run_job
 
+    from ..export.raster import start_helper
+
     prefetch_imports()  # the report's and posterior.nc's modules, while the job runs
+    start_helper()  # the process that draws the report's figures, loading meanwhile
 
     if args.steps is not None and args.steps < 100:
         raise InputError(f"--steps: got {args.steps}, expected at least 100", value=args.steps)

@@ -1,5 +1,6 @@
 """The command line starts at once (issue 16): parsing the arguments (`--help`) imports
-no JAX, and every subpackage that computes switches JAX to float64 when imported."""
+no JAX, and every subpackage that computes switches JAX to float64 when imported. The
+report's drawing helper (`export.raster`) imports no JAX either (issue 39)."""
 
 import os
 import subprocess
@@ -9,7 +10,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-SUBPACKAGES = ("geometry", "io", "gcode", "fit", "compensate", "uncertainty", "jobs", "export")
+SUBPACKAGES = ("geometry", "io", "gcode", "fit", "compensate", "uncertainty", "jobs",
+               "export.report", "export.figures", "export.machine", "export.tables")  # fmt: skip
 
 
 def _python(code: str) -> subprocess.CompletedProcess:
@@ -44,6 +46,16 @@ def test_float64_is_on_after_importing_any_subpackage(sub):
         "assert jnp.zeros(1).dtype == jnp.float64, jnp.zeros(1).dtype\n"
     )
     assert out.returncode == 0, out.stderr
+
+
+def test_the_drawing_helper_imports_no_jax():
+    out = _python(
+        "import sys\n"
+        "import piecs_bayes.export.raster\n"
+        "print(','.join(m for m in ('jax', 'scipy', 'pandas') if m in sys.modules))\n"
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == ""
 
 
 def test_the_cli_route_names_are_ios():

@@ -100,6 +100,12 @@ def _draw_band(ax, unc, i, fac, once):
     )
 
 
+def _diameter_label(radius: float, _pos) -> str:
+    """A radius tick labelled as the diameter (a module-level function: the figure
+    pickles, and is drawn in the helper process, `export.raster`)."""
+    return f"{2 * radius:g}"
+
+
 def profile_figure(res, exaggeration: float | None = None):
     """The profile as drawn (the vertical axis labelled with diameters, as on the
     drawing), each feature's tolerance zone, the measured points and fitted features,
@@ -141,7 +147,7 @@ def profile_figure(res, exaggeration: float | None = None):
     from matplotlib.ticker import FuncFormatter
 
     ax.set_aspect("equal", adjustable="datalim")
-    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{2 * v:g}"))
+    ax.yaxis.set_major_formatter(FuncFormatter(_diameter_label))
     ax.set_xlabel("Z (mm, along the spindle axis)")
     ax.set_ylabel("Ø (mm; half section drawn true to scale)")
     ax.set_title(

@@ -22,9 +22,9 @@ def report_files(res) -> tuple[str, bytes]:
     """`(html, pdf)` with every figure drawn once (what the CLI writes)."""
     from matplotlib import rc_context
 
-    png: dict[str, bytes] = {}
+    drawings: dict = {}
     with rc_context(RC):
         sections = report_sections(res)
-        pdf = pdf_report_bytes(pdf_pages(res, sections, on_figure=png.__setitem__), res)
-        text = html_report_text(res, sections, png)
+        pdf = pdf_report_bytes(pdf_pages(res, sections, on_figure=drawings.__setitem__), res)
+        text = html_report_text(res, sections, {k: d.png() for k, d in drawings.items()})
     return text, pdf

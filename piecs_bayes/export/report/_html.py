@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 
 from ..figures import RC
+from ..raster import png_bytes
 from ._sections import report_sections
 from ._summary import summary_table
 from .model import CLASS_COLOURS, Bullets, Fig, PageBreak, Para, Pre, Table, Tables, is_num
@@ -93,37 +93,6 @@ def _table_html(b: Table) -> str:
     return (
         f"{title}<table>{cap}<thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
     )
-
-
-#: colours of a report figure's PNG: a palette image, its colours chosen per figure
-PNG_COLOURS = 256
-
-
-def png_bytes(fig, dpi: float | None = None) -> bytes:
-    """`fig` as PNG, at `dpi` (the style's `savefig.dpi` when None), in at most
-    `PNG_COLOURS` colours (octree, no dithering).
-
-    A plot's pixels are a few thousand shades of the lines' antialiased edges, and a
-    palette of 256 keeps each within a few levels of 255 (47 at worst on the
-    translucent traces). The PDF embeds a figure of at most 256 colours indexed
-    instead of compressing its 24-bit pixels a second time, and the HTML is a third
-    of the size (docs/models/report.md, "Drawn once, written small")."""
-    from PIL import Image
-
-    raw = io.BytesIO()  # matplotlib's own PNG, stored without compression
-    fig.savefig(raw, format="png", pil_kwargs={"compress_level": 0},
-                **({} if dpi is None else {"dpi": dpi}))  # fmt: skip
-    with Image.open(raw) as im:
-        rgba = im.convert("RGBA")
-        info = {k: v for k, v in im.info.items() if k == "dpi"}
-    flat = Image.new("RGBA", rgba.size, "white")  # on white, as the page shows it
-    flat.alpha_composite(rgba)
-    pal = flat.convert("RGB").quantize(
-        PNG_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE
-    )
-    buf = io.BytesIO()
-    pal.save(buf, format="png", optimize=False, **info)
-    return buf.getvalue()
 
 
 def html_report_text(res, sections, png) -> str:

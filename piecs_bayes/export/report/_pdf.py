@@ -6,30 +6,29 @@ from __future__ import annotations
 
 import io
 import itertools
+from collections.abc import Callable
 
 from ..figures import RC
-from ._html import png_bytes
+from ..raster import Rasteriser
 from ._pdf_blocks import FIGURE_DPI, FigurePiece, keep_height, place_block, place_heading
 from ._pdf_flow import BODY, TITLE, Flow, render_pages, text_op
 from ._sections import report_sections
 from .model import Fig, PageBreak
 
 
-def _place_section(flow: Flow, head: str, blocks, on_figure, numbers) -> None:
+def _place_section(flow: Flow, head: str, blocks, figs: Callable, numbers) -> None:
     """A section: its heading, then its blocks; a figure that does not fit the page
-    (or comes after one that waits) floats to the top of the next page."""
+    (or comes after one that waits) floats to the top of the next page. Each figure
+    is made here and handed to `figs(name, figure)`, which returns its drawing:
+    placing it needs its size only, its pixels are read when its page is drawn."""
     figures = {}
     for i, b in enumerate(blocks):
         if isinstance(b, Fig):
             fig = b.make()
-            png = png_bytes(fig, FIGURE_DPI)  # drawn once, for the PDF and the HTML
-            if on_figure is not None:
-                on_figure(b.name, png)
             n = next(numbers)
             caption = f"Figure {n} (section {head}). {b.caption}"
-            figures[i] = FigurePiece(
-                png, fig.get_size_inches(), caption, full=b.full, shrink=b.shrink
-            )
+            figures[i] = FigurePiece(fig.get_size_inches(), caption, full=b.full, shrink=b.shrink)
+            figures[i].drawing = figs(b.name, fig)
     text = [i for i, b in enumerate(blocks) if i not in figures and not isinstance(b, PageBreak)]
     keep = keep_height(blocks[text[0]]) if text else 1.0
     if figures and min(figures) < (text[0] if text else len(blocks)):
@@ -48,7 +47,20 @@ def _place_section(flow: Flow, head: str, blocks, on_figure, numbers) -> None:
 
 
 def _layout(res, sections, on_figure=None) -> Flow:
-    """Every section's blocks placed on pages (figures drawn here, once)."""
+    """Every section's blocks placed on pages. Each figure is queued for drawing as
+    it is made, once, for the PDF and (`on_figure(name, drawing)`) the HTML: the
+    helper process draws the newest while this process goes on, and the pages, drawn
+    in order, draw here any figure the helper has not started (`export.raster`)."""
+    from matplotlib import rcParams
+
+    raster = Rasteriser(rcParams, FIGURE_DPI)  # the report's style (`RC`), as made
+
+    def figs(name, fig):
+        drawing = raster.draw(fig)
+        if on_figure is not None:
+            on_figure(name, drawing)
+        return drawing
+
     flow = Flow()
     h, title = text_op([f"piecs_bayes report: {res.study.name}"], TITLE, weight="bold")
     flow.place(h + 0.04, title)
@@ -60,13 +72,14 @@ def _layout(res, sections, on_figure=None) -> Flow:
     flow.place(h + 0.05, sub)
     numbers = itertools.count(1)
     for k, (_, t, blocks) in enumerate(sections, start=1):
-        _place_section(flow, f"{k}. {t}", blocks, on_figure, numbers)
+        _place_section(flow, f"{k}. {t}", blocks, figs, numbers)
     flow.flush()
     return flow
 
 
 def pdf_pages(res, sections, on_figure=None):
-    """Yield the PDF's pages as Figures (and call `on_figure(name, png)` for figures)."""
+    """Yield the PDF's pages as Figures (and call `on_figure(name, drawing)` for
+    figures: `drawing.png()` is its PNG)."""
     flow = _layout(res, sections, on_figure)
     footer = f"piecs_bayes report · {res.study.name} · part {res.part or '–'} · {res.created}"
     yield from render_pages(flow.pages, footer)

@@ -263,13 +263,15 @@ def _pixels(png: bytes):
 
 
 class FigurePiece:
-    """A figure (its PNG and its size in inches) scaled to the page width, at most
-    `share` of the page's height (all of it when `full`), with its caption below. On a
-    page with less room it shrinks down to `shrink` of that size (and at least 3 inches)."""
+    """A figure (its size in inches; its pixels from `drawing`) scaled to the page
+    width, at most `share` of the page's height (all of it when `full`), with its
+    caption below. On a page with less room it shrinks down to `shrink` of that size
+    (and at least 3 inches). Placing it needs the size only: `drawing` (a
+    `raster.Drawing`, or PNG bytes) is read when the page is drawn."""
 
-    def __init__(self, png: bytes, size_inches, caption: str, *, full=False, shrink=0.75):
+    def __init__(self, size_inches, caption: str, *, full=False, shrink=0.75):
         self.shrink = shrink
-        self.img = _pixels(png)
+        self.drawing = None
         self.fw, self.fh = size_inches
         self.cap = wrap(caption, WIDTH, SMALL) if caption else []
         self.cap_h = len(self.cap) * _line_h(SMALL) + 0.06
@@ -292,12 +294,13 @@ class FigurePiece:
                 flow.new_page()
         w = h * self.fw / self.fh
         x0 = LEFT + (WIDTH - w) / 2
-        img, cap = self.img, self.cap
+        cap = self.cap
 
         def draw(f, y):
             fw = f.get_figwidth()
             ax = f.add_axes((x0 / fw, (PAGE_H - y - h) / PAGE_H, w / fw, h / PAGE_H))
-            ax.imshow(img, interpolation="none", aspect="auto")
+            png = self.drawing if isinstance(self.drawing, bytes) else self.drawing.png()
+            ax.imshow(_pixels(png), interpolation="none", aspect="auto")
             ax.set_axis_off()
             if cap:
                 _, op = text_op(cap, SMALL, color="0.25", style="italic")
