@@ -88,9 +88,8 @@ def register(subparsers) -> None:
 def run_job_from_args(args, console):
     """Run the main job with the CLI's options and progress on the console."""
     from ..errors import InputError
-    from ..jobs import JobOptions, run_job
-
     from ..export.raster import start_helper
+    from ..jobs import JobOptions, run_job
 
     prefetch_imports()  # the report's and posterior.nc's modules, while the job runs
     start_helper()  # the process that draws the report's figures, loading meanwhile

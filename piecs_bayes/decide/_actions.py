@@ -51,12 +51,17 @@ class ActionLoss:
 
 @dataclass(frozen=True)
 class _Post:
-    """Posterior used for losses: normal (m, s) or weighted samples."""
+    """Posterior used for losses: normal (m, s) or weighted samples (with the weights'
+    first two moments about zero, and the samples sorted with their cumulative
+    weights: what `_loss` reads for many corrections at once)."""
 
     m: float
     s: float
     samples: np.ndarray | None = None
     weights: np.ndarray | None = None
+    moments: tuple[float, float, float] = (1.0, 0.0, 0.0)  # sum w, sum w x, sum w x^2
+    ordered: np.ndarray | None = None  # the samples, sorted
+    cumulative: np.ndarray | None = None  # 0, then the cumulative weights in that order
 
 
 def _posterior(m0, s0, samples, prior_sd) -> _Post:
@@ -73,7 +78,10 @@ def _posterior(m0, s0, samples, prior_sd) -> _Post:
         wts /= wts.sum()
     m = float(np.sum(wts * samples))
     s = float(math.sqrt(max(np.sum(wts * (samples - m) ** 2), 0.0)))
-    return _Post(m, s, samples, wts)
+    order = np.argsort(samples, kind="stable")
+    moments = (float(np.sum(wts)), float(wts @ samples), float(wts @ (samples * samples)))
+    cumulative = np.concatenate([[0.0], np.cumsum(wts[order])])
+    return _Post(m, s, samples, wts, moments, samples[order], cumulative)
 
 
 def p_out(d, tau, lo, hi):
@@ -96,11 +104,53 @@ def _loss(c, post: _Post, tol, st: DecisionSettings, k: float, adjust):
         tau = np.sqrt(post.s**2 + sa2 + st.process_sd**2)
         pout = p_out(mean, tau, lo, hi)
     else:
-        d = post.samples[None, :] + c[:, None]
-        ed2 = np.sum(post.weights * d**2, axis=1) + sa2 + st.process_sd**2
-        tau = np.sqrt(sa2 + st.process_sd**2)[:, None]
-        pout = np.sum(post.weights * p_out(d, tau, lo, hi), axis=1)
+        w0, w1, w2 = post.moments  # E[(x + c)^2] without a (corrections x samples) array
+        var = sa2 + st.process_sd**2
+        ed2 = w2 + 2.0 * c * w1 + c * c * w0 + var
+        pout = _p_out_samples(post, c, np.sqrt(var), lo, hi)
     return n * (k * ed2 + st.out_of_tolerance_cost * pout) + st.adjustment_cost * adjust
+
+
+def _count(ordered: np.ndarray, c: np.ndarray, bound: float, strict: bool) -> np.ndarray:
+    """Per correction `c`: how many of the sorted samples have `x + c < bound` (`strict`)
+    or `x + c <= bound`, as floating point rounds `x + c`. `x + c` rises with `x`, so
+    they are the first ones: a binary search for `bound - c` (which rounds too), then
+    moved across the few values where the two roundings disagree, a value (and all its
+    repeats) at a time."""
+    n = ordered.size
+
+    def below(i):
+        v = ordered[np.clip(i, 0, n - 1)] + c
+        return (v < bound) if strict else (v <= bound)
+
+    j = np.searchsorted(ordered, bound - c, side="left" if strict else "right")
+    while True:
+        back = (j > 0) & ~below(j - 1)  # the sample before is not below: step back
+        j = np.where(back, np.searchsorted(ordered, ordered[np.maximum(j - 1, 0)]), j)
+        ahead = (j < n) & below(j)  # the sample at j is below: step over its value
+        j = np.where(ahead, np.searchsorted(ordered, ordered[np.minimum(j, n - 1)], "right"), j)
+        if not (back.any() or ahead.any()):
+            return j
+
+
+def _p_out_samples(post: _Post, c: np.ndarray, tau: np.ndarray, lo: float, hi: float):
+    """`sum_i w_i p_out(x_i + c, tau)` per correction. Without scatter (`tau` 0): the
+    weights of the samples below `lo - c` and above `hi - c`, from the sorted samples'
+    cumulative weights; with it: a normal cdf per (correction, sample), summed by a
+    matrix-vector product."""
+    if np.all(tau == 0):
+        cum = post.cumulative
+        below = cum[_count(post.ordered, c, lo, True)]
+        return below + (cum[-1] - cum[_count(post.ordered, c, hi, False)])
+    if np.all(tau > 0):
+        z = np.subtract.outer(lo - c, post.samples)
+        z /= tau[:, None]
+        pout = special.ndtr(z, out=z) @ post.weights
+        z = np.add.outer(c - hi, post.samples)
+        z /= tau[:, None]
+        return pout + special.ndtr(z, out=z) @ post.weights
+    d = post.samples[None, :] + c[:, None]
+    return np.sum(post.weights * p_out(d, tau[:, None], lo, hi), axis=1)
 
 
 def _bayes_correction(post: _Post, tol, st, k) -> float:
