@@ -137,6 +137,34 @@ def persisted(name: str, key, build, packages: tuple[str, ...] = ()) -> tuple:
     return jax.jit(exported.call), meta
 
 
+class KeptTrace:
+    """`fn(*args)` run through a trace kept across processes (`persisted`), one per
+    structure of the arguments (their tree, shapes and dtypes), named by `name` and
+    `key`: all that the traced function computes from (hashable, with a repr that
+    says all of it, as for `persisted`). Arguments other than arrays (a Python number:
+    weakly typed; a tracer: `fn` called inside another trace) go to `fn` itself."""
+
+    def __init__(self, name: str, key, fn):
+        self.name, self.key, self.fn = name, key, fn
+        self._calls: dict = {}
+
+    def __call__(self, *args):
+        import numpy as np
+
+        leaves, tree = jax.tree_util.tree_flatten(args)
+        if not all(isinstance(x, np.ndarray | jax.Array) for x in leaves) or any(
+            isinstance(x, jax.core.Tracer) for x in leaves
+        ):
+            return self.fn(*args)
+        sig = (str(tree), tuple((tuple(x.shape), str(x.dtype)) for x in leaves))
+        call = self._calls.get(sig)
+        if call is None:
+            specs = tree.unflatten([jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves])
+            call = persisted(self.name, (self.key, sig), lambda: (self.fn, specs, {}))[0]
+            self._calls[sig] = call
+        return call(*args)
+
+
 class LazyModule:
     """A module imported on its first attribute access: `stats = LazyModule("scipy.stats")`
     keeps a run that never computes a quantile (`piecs-bayes fit`) from paying for

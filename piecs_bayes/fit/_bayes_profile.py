@@ -198,6 +198,12 @@ def _model(
             ll = loglik(*residuals(theta, args))
         return jnp.where(jnp.isfinite(lp), lp + ll, -jnp.inf)
 
+    # what log_prob computes, all of it (the arguments of this cached function): traces
+    # of it are kept across processes under this name (`mcmc._core._kept`)
+    log_prob.trace_key = ("profile_log_posterior", profile, tuple(feature_ids.tolist()),
+                          frozen_sources, ball_radius, transform, sigma, likelihood, nu,
+                          with_approach, file, radius, weighted)  # fmt: skip
+
     def pointwise(theta, args):
         ll = per_point(*residuals(theta, args))
         return jnp.full(feature_ids.size, jnp.nan, dtype=ll.dtype).at[order].set(ll)

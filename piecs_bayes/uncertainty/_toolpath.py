@@ -16,6 +16,7 @@ bands are pointwise and simultaneous bands of that offset.
 from __future__ import annotations
 
 import functools
+import hashlib
 import math
 from dataclasses import dataclass
 
@@ -23,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import _config
 from ..compensate import adjusted_geometry
 from ..errors import InputError
 from ..fit import (
@@ -226,9 +228,24 @@ def _gain_key(gain):
     return tuple(sorted(gain.items())) if isinstance(gain, dict) else float(gain)
 
 
+def _grid_key(grid: PathGrid) -> str:
+    """The grid's arrays as a digest (a key of kept traces: an array's repr elides)."""
+    h = hashlib.sha256()
+    for a in (grid.feature, grid.t, grid.points, grid.normals):
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _kept(name: str, fn, *key):
+    """`fn` through a trace kept across processes (`_config.KeptTrace`): tracing the
+    path and residual Jacobians is most of a warm `demo`'s tool-path step."""
+    return _config.KeptTrace(name, key, fn)
+
+
 @functools.lru_cache(maxsize=64)
-def _path_jacobian(profile: Profile, grid: PathGrid, gain_key):
-    """Jitted ``devs_flat -> (path values, d path / d devs)``, cached per structure."""
+def _path_jacobian_jit(profile: Profile, grid: PathGrid, gain_key):
     gain = dict(gain_key) if isinstance(gain_key, tuple) else gain_key
     path_f = path_function(profile, grid, gain)
 
@@ -239,9 +256,17 @@ def _path_jacobian(profile: Profile, grid: PathGrid, gain_key):
     return jax.jit(lambda d: (path_flat(d), jax.jacfwd(path_flat)(d)))
 
 
+@functools.lru_cache(maxsize=64)
+def _path_jacobian(profile: Profile, grid: PathGrid, gain_key):
+    """Jitted ``devs_flat -> (path values, d path / d devs)``, cached per structure."""
+    fn = _path_jacobian_jit(profile, grid, gain_key)
+    return _kept("path_jacobian", fn, profile, _grid_key(grid), gain_key)
+
+
 @functools.lru_cache(maxsize=16)
 def _batched_path_jacobian(profile: Profile, grid: PathGrid, gain_key):
-    return jax.jit(jax.vmap(_path_jacobian(profile, grid, gain_key)))
+    fn = jax.jit(jax.vmap(_path_jacobian_jit(profile, grid, gain_key)))
+    return _kept("path_jacobians", fn, profile, _grid_key(grid), gain_key)
 
 
 def path_jacobian_function(profile: Profile, grid: PathGrid, gain=1.0, *, batched=False):
@@ -266,6 +291,7 @@ def _batched_path(profile: Profile, grid: PathGrid, gain_key):
     called on blocks of `PATH_BLOCK` draws (cached per structure)."""
     gain = dict(gain_key) if isinstance(gain_key, tuple) else gain_key
     block = jax.jit(jax.vmap(path_function(profile, grid, gain)))
+    block = _kept("path_block", block, profile, _grid_key(grid), gain_key)
 
     def over_draws(stacked):
         m = len(stacked[0])
@@ -315,12 +341,14 @@ def _residual_jacobians(
             radius=radius,
         )
 
-    return jax.jit(
+    fn = jax.jit(
         lambda d, x, a: (
             jax.jacfwd(residuals, argnums=0)(d, x, a),
             jax.jacfwd(residuals, argnums=1)(d, x, a),
         )
     )
+    return _kept("residual_jacobians", fn, profile, feature_ids, names, ball_radius,
+                 transform, with_approach, radius)  # fmt: skip
 
 
 @dataclass(frozen=True)

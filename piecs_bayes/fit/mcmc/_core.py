@@ -154,17 +154,34 @@ def diagnose(kept: np.ndarray, lps: np.ndarray, run_thin: int, thin, tau_factor:
 # --------------------------------------------------------------------------- sampling
 
 
+def kept_trace(name: str, log_prob, fn, *structure):
+    """`fn`, through a kept trace when `log_prob` says what it computes (a
+    `trace_key` attribute: the profile model's does), else None. `structure`: the
+    rest of what the trace depends on (sizes, settings: hashable, with a full repr)."""
+    from ... import _config
+
+    key = getattr(log_prob, "trace_key", None)
+    return None if key is None else _config.KeptTrace(name, (key, *structure), fn)
+
+
+def _kept(name: str, log_prob, fn):
+    """`fn` through a kept trace where `log_prob` has a `trace_key`, else `fn`."""
+    return kept_trace(name, log_prob, fn) or fn
+
+
 @functools.lru_cache(maxsize=64)
 def _neg_hessian(log_prob):
-    """Jitted Hessian of ``-log_prob``, cached per function."""
-    return jax.jit(jax.hessian(lambda t, a: -log_prob(t, a)))
+    """Jitted Hessian of ``-log_prob``, cached per function (and its trace kept
+    across processes where `log_prob` has a `trace_key`: tracing it takes ~1 s)."""
+    return _kept("neg_hessian", log_prob, jax.jit(jax.hessian(lambda t, a: -log_prob(t, a))))
 
 
 @functools.lru_cache(maxsize=64)
 def neg_hessians(log_prob):
     """`_neg_hessian` of many parts at once (`vmap` over the leading axis of the start
     and of every leaf of the arguments), cached per function."""
-    return jax.jit(jax.vmap(jax.hessian(lambda t, a: -log_prob(t, a))))
+    fn = jax.jit(jax.vmap(jax.hessian(lambda t, a: -log_prob(t, a))))
+    return _kept("neg_hessians", log_prob, fn)
 
 
 def cov_from_hessian(h: np.ndarray) -> np.ndarray:

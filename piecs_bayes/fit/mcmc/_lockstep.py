@@ -33,6 +33,7 @@ from ._core import (
     ConvergenceWarning,
     cov_from_hessian,
     diagnose,
+    kept_trace,
     neg_hessians,
     sqrt_psd,
     start_cov,
@@ -49,9 +50,11 @@ LOCKSTEP = "piecs_bayes lockstep ensembles"
 @functools.lru_cache(maxsize=64)
 def _parts_walkers(log_prob):
     """`log_prob(theta, args)` jitted and vmapped over parts (theta and args) and
-    walkers (theta only), cached per function."""
+    walkers (theta only), cached per function (its traces kept across processes where
+    `log_prob` has a `trace_key`)."""
     over_walkers = jax.vmap(log_prob, in_axes=(0, None))
-    return jax.jit(jax.vmap(over_walkers, in_axes=(0, 0)))
+    fn = jax.jit(jax.vmap(over_walkers, in_axes=(0, 0)))
+    return kept_trace("parts_walkers", log_prob, fn) or fn
 
 
 def _evaluate(vec, q, args, n_parts, n_ens):
@@ -187,7 +190,16 @@ def _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, 
         jnp.asarray(lp),
         jnp.zeros((n_e, w)),
     )
-    advance = advance.lower(carry, 0, 0, args).compile()  # n_skip, n_keep: traced
+    kept = kept_trace("lockstep_advance", log_prob, advance,
+                      n_parts, k_ens, w, ndim, moves, thin, _BLOCK)  # fmt: skip
+    if kept is None:
+        advance = advance.lower(carry, 0, 0, args).compile()  # n_skip, n_keep: traced
+    else:  # the trace kept across processes (~0.5 s to trace and lower): counts as arrays
+
+        def advance(carry, n_skip, n_keep, args):
+            return kept(carry, np.asarray(n_skip, np.int64), np.asarray(n_keep, np.int64), args)
+
+        jax.block_until_ready(advance(carry, 0, 0, args))  # compiled now: no step run
 
     def run(bar):
         nonlocal carry
