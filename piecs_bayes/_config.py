@@ -142,27 +142,46 @@ class KeptTrace:
     structure of the arguments (their tree, shapes and dtypes), named by `name` and
     `key`: all that the traced function computes from (hashable, with a repr that
     says all of it, as for `persisted`). Arguments other than arrays (a Python number:
-    weakly typed; a tracer: `fn` called inside another trace) go to `fn` itself."""
+    weakly typed; a tracer: `fn` called inside another trace) go to `fn` itself.
+    `compiled(*args)` gives the program for `args` compiled ahead of time."""
 
     def __init__(self, name: str, key, fn):
         self.name, self.key, self.fn = name, key, fn
         self._calls: dict = {}
+        self._compiled: dict = {}
 
-    def __call__(self, *args):
+    def _call(self, args):
+        """`(signature, jitted kept trace)` for `args`, or None where `fn` runs them."""
         import numpy as np
 
         leaves, tree = jax.tree_util.tree_flatten(args)
         if not all(isinstance(x, np.ndarray | jax.Array) for x in leaves) or any(
             isinstance(x, jax.core.Tracer) for x in leaves
         ):
-            return self.fn(*args)
+            return None
         sig = (str(tree), tuple((tuple(x.shape), str(x.dtype)) for x in leaves))
         call = self._calls.get(sig)
         if call is None:
             specs = tree.unflatten([jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves])
             call = persisted(self.name, (self.key, sig), lambda: (self.fn, specs, {}))[0]
             self._calls[sig] = call
-        return call(*args)
+        return sig, call
+
+    def __call__(self, *args):
+        found = self._call(args)
+        return self.fn(*args) if found is None else found[1](*args)
+
+    def compiled(self, *args):
+        """The program for arguments like `args` compiled now (`jax.stages.Compiled`,
+        kept for later calls: it takes exactly these shapes and dtypes), or None
+        where `fn` would run them itself."""
+        found = self._call(args)
+        if found is None:
+            return None
+        sig, call = found
+        if sig not in self._compiled:
+            self._compiled[sig] = call.lower(*args).compile()
+        return self._compiled[sig]
 
 
 class LazyModule:

@@ -44,7 +44,7 @@ def _new_process():
     """What a new process starts from: no model, jitted function or kept trace in
     memory (the files on disk stay)."""
     for cached in (_bayes_profile._model, _core._neg_hessian, _core.neg_hessians,
-                   _lockstep._parts_walkers, _lockstep._jax_chain):  # fmt: skip
+                   _lockstep._parts_walkers, _lockstep._jax_chain, _lockstep._kept_chain):  # fmt: skip
         cached.cache_clear()
 
 

@@ -178,6 +178,15 @@ def _jax_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: str
     return advance
 
 
+@functools.lru_cache(maxsize=32)
+def _kept_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: str, thin: int):
+    """`_jax_chain`'s runner through a trace kept across processes (None when
+    `log_prob` has no `trace_key`), one per model: later runs reuse its program."""
+    advance = _jax_chain(log_prob, n_parts, k_ens, w, ndim, moves, thin)
+    return kept_trace("lockstep_advance", log_prob, advance,
+                      n_parts, k_ens, w, ndim, moves, thin, _BLOCK)  # fmt: skip
+
+
 def _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep, seed):
     """The JAX backend, compiled (so that the run's wall time excludes compilation):
     a function `run(bar)` that returns the kept walkers `(n_keep, E, W, d)`, their
@@ -190,16 +199,16 @@ def _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, 
         jnp.asarray(lp),
         jnp.zeros((n_e, w)),
     )
-    kept = kept_trace("lockstep_advance", log_prob, advance,
-                      n_parts, k_ens, w, ndim, moves, thin, _BLOCK)  # fmt: skip
-    if kept is None:
+    kept = _kept_chain(log_prob, n_parts, k_ens, w, ndim, moves, thin)
+    n0 = np.asarray(0, np.int64)
+    compiled = None if kept is None else kept.compiled(carry, n0, n0, args)
+    if compiled is None:
         advance = advance.lower(carry, 0, 0, args).compile()  # n_skip, n_keep: traced
     else:  # the trace kept across processes (~0.5 s to trace and lower): counts as arrays
 
         def advance(carry, n_skip, n_keep, args):
-            return kept(carry, np.asarray(n_skip, np.int64), np.asarray(n_keep, np.int64), args)
-
-        jax.block_until_ready(advance(carry, 0, 0, args))  # compiled now: no step run
+            n_skip, n_keep = np.asarray(n_skip, np.int64), np.asarray(n_keep, np.int64)
+            return compiled(carry, n_skip, n_keep, args)
 
     def run(bar):
         nonlocal carry
