@@ -37,12 +37,19 @@ _LATE_IMPORTS = (
 )
 
 
-def prefetch_imports(names=_LATE_IMPORTS) -> None:
+def prefetch_imports(names=_LATE_IMPORTS):
     """Import `names` in a background thread: the sampler's compiled loop releases the
     GIL, so they load while it runs instead of after it. Best effort: a failure here is
-    left for the import where the module is used, which reports it."""
+    left for the import where the module is used, which reports it. arviz's import
+    notice is silenced here, in the caller's thread (`quiet_arviz_notice`), as
+    `import_arviz` silences it: without it, the thread's import showed it as a warning
+    whenever it ran outside the sampler's recorded warnings (a cold demo)."""
     import importlib
     import threading
+
+    from ..fit.mcmc import quiet_arviz_notice
+
+    quiet_arviz_notice()
 
     def load():
         for name in names:
@@ -51,7 +58,9 @@ def prefetch_imports(names=_LATE_IMPORTS) -> None:
             except BaseException:  # noqa: BLE001 - the real import reports it
                 return
 
-    threading.Thread(target=load, name="piecs-bayes-prefetch", daemon=True).start()
+    thread = threading.Thread(target=load, name="piecs-bayes-prefetch", daemon=True)
+    thread.start()
+    return thread
 
 
 def add_common(p: argparse.ArgumentParser, *, out: bool = True) -> None:

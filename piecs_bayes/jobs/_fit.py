@@ -295,13 +295,16 @@ def toolpath_uncertainty(
 
     **Returns:** ``{"linearised": ToolpathUncertainty, "monte_carlo": ... or None}``.
     """
+    lin = linearised_uncertainty(study, fit, probe, part=part, gain=gain)
+    mc = None if bayes is None else monte_carlo_uncertainty(study, bayes, lin, gain=gain)
+    return {"linearised": lin, "monte_carlo": mc}
+
+
+def linearised_uncertainty(study: Study, fit: ProfileFit, probe=None, *, part=None, gain=None):
+    """The linearised (GUM) half of [`toolpath_uncertainty`][]: from the robust fit
+    alone (the main job computes it while the sampler runs)."""
     from ..fit.mcmc import prior_from_spec
-    from ..uncertainty import (
-        LINEARISED_SOURCES,
-        LinearisedOptions,
-        linearised_toolpath,
-        monte_carlo_toolpath,
-    )
+    from ..uncertainty import LINEARISED_SOURCES, LinearisedOptions, linearised_toolpath
 
     data = inliers(fit, _part_data(study, probe, part or fit.part))
     gain = study.compensation.gain if gain is None else gain
@@ -323,7 +326,7 @@ def toolpath_uncertainty(
         gain=gain,
         radius=radius,
     )
-    lin = linearised_toolpath(
+    return linearised_toolpath(
         study.profile,
         data.feature,
         data.points,
@@ -333,10 +336,17 @@ def toolpath_uncertainty(
         dof=dof,
         approach=data.approach if "pretravel" in source_sd or radius else None,
     )
-    mc = None
-    if bayes is not None:
-        mc = monte_carlo_toolpath(study.profile, bayes.deviation_samples, gain=gain, grid=lin.grid)
-    return {"linearised": lin, "monte_carlo": mc}
+
+
+def monte_carlo_uncertainty(study: Study, bayes, linearised, *, gain=None):
+    """The Monte Carlo (JCGM 101) half of [`toolpath_uncertainty`][]: the posterior's
+    draws through the adjusted path, on the linearised result's grid."""
+    from ..uncertainty import monte_carlo_toolpath
+
+    gain = study.compensation.gain if gain is None else gain
+    return monte_carlo_toolpath(
+        study.profile, bayes.deviation_samples, gain=gain, grid=linearised.grid
+    )
 
 
 def _fit_loss(fit: ProfileFit) -> str:

@@ -19,8 +19,10 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import functools
 import math
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -39,8 +41,9 @@ from ._fit import (
     bayes_study,
     compensate_study,
     fit_study,
+    linearised_uncertainty,
     load_probe_data,
-    toolpath_uncertainty,
+    monte_carlo_uncertainty,
 )
 from ._machine import error_spec, tool_offsets
 from ._probe_radius import calibration_warnings
@@ -186,9 +189,12 @@ def run_job(
         run.fit = fit_study(run.study, run.probe, method=o.method, part=part)
     run.say(f"fitted {len(run.fit.fits)} features ({run.fit.method}, part {run.fit.part})")
     run.gains = _clip_gains({f.id: run.study.compensation.gain for f in run.study.profile.features})
+    beside = _Beside(run, o.decisions, o.uncertainty)
+    if o.bayes:
+        beside.start()  # the steps that need only the robust fit, while the sampler runs
     _step_bayes(run, o.bayes, o.nsteps, o.seed)
-    _step_decisions(run, o.decisions)
-    _step_path(run, o.uncertainty)
+    _step_decisions(run, o.decisions, beside)
+    _step_path(run, o.uncertainty, beside)
     nose_radius, tool_table = _nose_radius_and_tools(run.study, o.nose_radius, o.tool_table)
     _step_program(run, o.program, nose_radius, tool_table, created)
     _step_errspec(run, o.errspec)
@@ -223,6 +229,68 @@ def _choose_part(run: _Run, part):
     )
     run.say(note)
     return part, note
+
+
+class _Beside:
+    """Steps 3 to 5 as far as they need only the robust fit: the decisions, the gains
+    they give, the adjusted path and its linearised uncertainty. With the Bayesian fit
+    on, a thread computes them while the sampler runs (its compiled loop leaves the
+    other core idle and releases the GIL); without it, the first `result()` computes
+    them here. Each is the step's own call on the same inputs, so the results do not
+    depend on which thread made them; the steps read them in their order, report them
+    and re-raise a failure that is not a `PiecsError` where the step would have. The
+    timings are the computations' own."""
+
+    def __init__(self, run: _Run, decisions: bool, uncertainty: bool):
+        self._args = (run.study, run.fit, run.probe, dict(run.gains), decisions, uncertainty)
+        self._out: dict | None = None
+        self._error: BaseException | None = None
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._work, name="piecs-bayes-beside",
+                                        daemon=True)  # fmt: skip
+        self._thread.start()
+
+    def result(self) -> dict:
+        if self._thread is not None:
+            self._thread.join()
+        elif self._out is None and self._error is None:
+            self._work()
+        if self._error is not None:
+            raise self._error
+        return self._out
+
+    def _work(self) -> None:
+        try:
+            self._out = self._compute(*self._args)
+        except BaseException as exc:  # noqa: BLE001 - re-raised by result()
+            self._error = exc
+
+    @staticmethod
+    def _compute(study, fit, probe, gains, decisions, uncertainty) -> dict:
+        out: dict = {"timings": {}, "gains": gains}
+
+        def attempt(step, key, fn, *errors):
+            t0 = time.perf_counter()
+            try:
+                out[key] = fn()
+            except errors as exc:
+                out[f"{key}_error"] = exc
+            out["timings"][step] = time.perf_counter() - t0
+            return out.get(key)
+
+        if decisions:
+            decide = functools.partial(decide_study, study, fit)
+            table = attempt("decisions", "decisions", decide, PiecsError)
+            if table is not None:
+                gains.update(_clip_gains(table.gains))
+        adjust = functools.partial(compensate_study, study, fit, gain=gains)
+        path = attempt("path", "path", adjust, AnalysisError)
+        if uncertainty and path is not None:
+            lin = functools.partial(linearised_uncertainty, study, fit, probe, gain=gains)
+            attempt("uncertainty", "linearised", lin, PiecsError)
+        return out
 
 
 def _step_bayes(run: _Run, bayes: bool, nsteps, seed) -> None:
@@ -267,34 +335,39 @@ def _bayes_characteristics(bayes, decisions):
     return MappingProxyType(out)
 
 
-def _step_decisions(run: _Run, decisions: bool) -> None:
+def _step_decisions(run: _Run, decisions: bool, beside: _Beside) -> None:
     """3. Decisions per feature; their gains drive the path, program and error spec."""
     if not decisions:
         run.skipped.append("decisions")
         return
-    table = None
-    with run.timed("decisions"):
-        try:
-            table = decide_study(run.study, run.fit)
-            run.gains.update(_clip_gains(table.gains))
-            if run.out.get("bayes") is not None:
-                run.out["bayes_characteristics"] = _bayes_characteristics(run.out["bayes"], table)
-        except PiecsError as exc:
-            run.unavailable["decisions"] = str(exc)
+    early = beside.result()
+    run.timings["decisions"] = early["timings"]["decisions"]
+    table = early.get("decisions")
+    if table is None:
+        run.unavailable["decisions"] = str(early["decisions_error"])
+    else:
+        run.gains.update(early["gains"])
+        if run.out.get("bayes") is not None:
+            with run.timed("decisions"):
+                try:
+                    run.out["bayes_characteristics"] = _bayes_characteristics(
+                        run.out["bayes"], table
+                    )
+                except PiecsError as exc:
+                    run.unavailable["decisions"] = str(exc)
     run.out["decisions"] = table
     if table is not None:
         verdicts = ", ".join(f"{d.feature} {d.verdict}" for d in table.decisions)
         run.say(f"decided: {verdicts}")
 
 
-def _step_path(run: _Run, uncertainty: bool) -> None:
+def _step_path(run: _Run, uncertainty: bool, beside: _Beside) -> None:
     """4. The adjusted tool path and 5. its uncertainty."""
-    with run.timed("path"):
-        try:
-            path = compensate_study(run.study, run.fit, gain=run.gains)
-        except AnalysisError as exc:
-            path = None
-            run.unavailable["path"] = str(exc)
+    early = beside.result()
+    run.timings["path"] = early["timings"]["path"]
+    path = early.get("path")
+    if path is None:
+        run.unavailable["path"] = str(early["path_error"])
     run.out["path"] = path
     if path is not None:
         run.say(f"adjusted tool path: {path!r}")
@@ -305,16 +378,22 @@ def _step_path(run: _Run, uncertainty: bool) -> None:
         run.unavailable["uncertainty"] = "no adjusted tool path"
         return
     unc = None
-    mc = " and Monte Carlo" if run.out.get("bayes") is not None else ""
+    bayes = run.out.get("bayes")
+    mc = " and Monte Carlo" if bayes is not None else ""
     run.say(f"tool-path uncertainty: linearised (GUM){mc} propagation")
-    with run.timed("uncertainty"):
-        try:
-            unc = toolpath_uncertainty(
-                run.study, run.fit, run.probe, bayes=run.out.get("bayes"), gain=run.gains
-            )
-            unc = MappingProxyType(dict(unc))
-        except PiecsError as exc:
-            run.unavailable["uncertainty"] = str(exc)
+    run.timings["uncertainty"] = early["timings"]["uncertainty"]
+    lin = early.get("linearised")
+    if lin is None:
+        run.unavailable["uncertainty"] = str(early["linearised_error"])
+    else:
+        with run.timed("uncertainty"):
+            try:
+                mc = None
+                if bayes is not None:
+                    mc = monte_carlo_uncertainty(run.study, bayes, lin, gain=run.gains)
+                unc = MappingProxyType({"linearised": lin, "monte_carlo": mc})
+            except PiecsError as exc:
+                run.unavailable["uncertainty"] = str(exc)
     run.out["uncertainty"] = unc
     if unc is not None:
         run.say(f"tool-path bounds: {unc['linearised']!r}")

@@ -14,8 +14,8 @@ SUBPACKAGES = ("geometry", "io", "gcode", "fit", "compensate", "uncertainty", "j
                "export.report", "export.figures", "export.machine", "export.tables")  # fmt: skip
 
 
-def _python(code: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+def _python(code: str, **env_more) -> subprocess.CompletedProcess:
+    env = {**os.environ, "JAX_PLATFORMS": "cpu", **env_more}
     return subprocess.run(
         [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True
     )
@@ -63,3 +63,22 @@ def test_the_cli_route_names_are_ios():
     from piecs_bayes.io import APPLY_ROUTES as IO_ROUTES
 
     assert APPLY_ROUTES == IO_ROUTES
+
+
+def test_the_late_imports_in_their_thread_say_nothing(tmp_path):
+    """The job's late imports (arviz, matplotlib's backends) load in a thread while the
+    sampler runs: arviz's import notice (a FutureWarning, once a day per user cache:
+    every time on a new machine) is not shown to the user, as where the main thread
+    imports it (`fit.mcmc.import_arviz`)."""
+    code = (
+        "import warnings\n"
+        "warnings.simplefilter('default')\n"
+        "from piecs_bayes.cli._common import prefetch_imports\n"
+        "prefetch_imports().join()\n"
+        "import sys\n"
+        "print(','.join(m for m in ('arviz', 'matplotlib.backends.backend_pdf') if m in sys.modules))\n"
+    )
+    out = _python(code, XDG_CACHE_HOME=str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "arviz,matplotlib.backends.backend_pdf"
+    assert "ArviZ" not in out.stderr and "Warning" not in out.stderr, out.stderr

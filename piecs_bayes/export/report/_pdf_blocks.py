@@ -296,7 +296,8 @@ class FigurePiece:
         x0 = LEFT + (WIDTH - w) / 2
         cap = self.cap
 
-        def draw(f, y):
+        def draw(page, y):
+            f = page.get_figure(root=True)
             fw = f.get_figwidth()
             ax = f.add_axes((x0 / fw, (PAGE_H - y - h) / PAGE_H, w / fw, h / PAGE_H))
             png = self.drawing if isinstance(self.drawing, bytes) else self.drawing.png()
@@ -304,7 +305,7 @@ class FigurePiece:
             ax.set_axis_off()
             if cap:
                 _, op = text_op(cap, SMALL, color="0.25", style="italic")
-                op(f, y + h + 0.05)
+                op(page, y + h + 0.05)
 
         flow.place(h + self.cap_h, draw)
         flow.skip(_GAP)

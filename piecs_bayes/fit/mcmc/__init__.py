@@ -10,6 +10,7 @@ from ._moves import check_moves as check_moves
 from ._options import SamplerOptions as SamplerOptions
 from ._posterior import frozen as frozen
 from ._posterior import import_arviz as import_arviz
+from ._posterior import quiet_arviz_notice as quiet_arviz_notice
 from ._priors import HalfNormal as HalfNormal
 from ._priors import LogNormal as LogNormal
 from ._priors import Normal as Normal

@@ -212,15 +212,23 @@ def emcee_module():
     return emcee
 
 
+#: arviz 0.2x announces its 1.x refactor with a FutureWarning on import: expected, not
+#: actionable for our users (we pin < 1), so exactly that one is silenced
+ARVIZ_NOTICE = r"\s*ArviZ is undergoing a major refactor"
+
+
 def import_arviz():
-    # arviz 0.2x announces its 1.x refactor with a FutureWarning on import: expected,
-    # not actionable for our users (we pin < 1), so silence exactly that one.
     with warnings.catch_warnings():
-        warnings.filterwarnings(
-            "ignore", message=r"\s*ArviZ is undergoing a major refactor", category=FutureWarning
-        )
+        warnings.filterwarnings("ignore", message=ARVIZ_NOTICE, category=FutureWarning)
         import arviz as az
     return az
+
+
+def quiet_arviz_notice() -> None:
+    """Silence arviz's refactor notice in the current warning filters, for an import of
+    arviz in another thread (where `warnings.catch_warnings` is not safe: it swaps the
+    process's filters under the other threads)."""
+    warnings.filterwarnings("ignore", message=ARVIZ_NOTICE, category=FutureWarning)
 
 
 def make_posterior(names, draws, diag, problems, options, *, thin, wall_time, sampler
