@@ -35,22 +35,44 @@ def png_bytes(fig, dpi: float | None = None) -> bytes:
     translucent traces). The PDF embeds a figure of at most 256 colours indexed
     instead of compressing its 24-bit pixels a second time, and the HTML is a third
     of the size (docs/models/report.md, "Drawn once, written small")."""
+    from matplotlib import rcParams
     from PIL import Image
 
-    raw = io.BytesIO()  # matplotlib's own PNG, stored without compression
-    fig.savefig(raw, format="png", pil_kwargs={"compress_level": 0},
-                **({} if dpi is None else {"dpi": dpi}))  # fmt: skip
-    with Image.open(raw) as im:
-        rgba = im.convert("RGBA")
-        info = {k: v for k, v in im.info.items() if k == "dpi"}
+    d = rcParams["savefig.dpi"] if dpi is None else dpi
+    d = fig.dpi if d == "figure" else float(d)
+    raw = _Pixels()  # Agg's pixels as they are: no PNG written and read back
+    fig.savefig(raw, format="rgba", dpi=d)
+    if len(raw.shape) == 3:  # (height, width, 4): the renderer's buffer
+        rgba = Image.frombuffer("RGBA", raw.shape[1::-1], raw.data, "raw", "RGBA", 0, 1)
+    else:  # a matplotlib that writes bytes: its size is not known here, read a PNG
+        png = io.BytesIO()
+        fig.savefig(png, format="png", dpi=d, pil_kwargs={"compress_level": 0})
+        with Image.open(png) as im:
+            rgba = im.convert("RGBA")
     flat = Image.new("RGBA", rgba.size, "white")  # on white, as the page shows it
     flat.alpha_composite(rgba)
     pal = flat.convert("RGB").quantize(
         PNG_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE
     )
     buf = io.BytesIO()
-    pal.save(buf, format="png", optimize=False, **info)
+    pal.save(buf, format="png", optimize=False, dpi=(d, d))
     return buf.getvalue()
+
+
+class _Pixels:
+    """A file for `savefig(format="rgba")` that keeps what Agg writes, the renderer's
+    buffer, with its shape."""
+
+    shape: tuple = ()
+    data: bytes = b""
+
+    def write(self, b) -> int:
+        view = memoryview(b)
+        self.shape, self.data = view.shape, view.tobytes()
+        return view.nbytes
+
+    def seek(self, offset: int, whence: int = 0) -> int:  # a file handle, to matplotlib
+        return 0
 
 
 def _serve() -> None:  # pragma: no cover - runs in the helper process

@@ -13,6 +13,7 @@ The sections and their rendering: docs/models/report.md.
 from __future__ import annotations
 
 from ..figures import RC
+from ..raster import start_helper
 from ._html import html_report_text
 from ._pdf import pdf_pages, pdf_report_bytes
 from ._sections import report_sections
@@ -21,6 +22,8 @@ from ._sections import report_sections
 def report_files(res) -> tuple[str, bytes]:
     """`(html, pdf)` with every figure drawn once (what the CLI writes)."""
     from matplotlib import rc_context
+
+    start_helper()  # it loads while the sections are built
 
     drawings: dict = {}
     with rc_context(RC):

@@ -48,11 +48,18 @@ def _word_pt(word: str, size: float, bold: bool, mono: bool) -> float:
     return float(w)
 
 
+def _space_pt(size: float, bold: bool, mono: bool) -> float:
+    return _word_pt("a a", size, bold, mono) - 2 * _word_pt("a", size, bold, mono)
+
+
+def _words_pt(words: list[str], size: float, bold: bool, mono: bool) -> float:
+    return sum(_word_pt(w, size, bold, mono) for w in words)
+
+
 def text_width(text: str, size: float, *, bold=False, mono=False) -> float:
     """Width of `text` in inches (words measured, kerning between them ignored)."""
     words = text.split(" ")
-    space = _word_pt("a a", size, bold, mono) - 2 * _word_pt("a", size, bold, mono)
-    total = sum(_word_pt(w, size, bold, mono) for w in words) + space * (len(words) - 1)
+    total = _words_pt(words, size, bold, mono) + _space_pt(size, bold, mono) * (len(words) - 1)
     return 1.03 * total * PT
 
 
@@ -66,24 +73,49 @@ def _break_word(word: str, width: float, size, bold, mono) -> list[str]:
     return out + [cur]
 
 
+class _Line:
+    """A line being filled: its text and `text_width`'s sums, kept as words are added
+    (the same sums in the same order: a column as wide as its widest cell still
+    holds that cell)."""
+
+    def __init__(self, text: str, size, bold, mono):
+        self.key = (size, bold, mono)
+        words = text.split(" ")
+        self.text, self.words, self.n = text, _words_pt(words, *self.key), len(words)
+
+    def width_with(self, word_pt: float) -> float:
+        space = _space_pt(*self.key)
+        return 1.03 * ((self.words + word_pt) + space * self.n) * PT
+
+    def add(self, word: str, word_pt: float) -> None:
+        self.text, self.words, self.n = f"{self.text} {word}", self.words + word_pt, self.n + 1
+
+    @property
+    def width(self) -> float:
+        return 1.03 * (self.words + _space_pt(*self.key) * (self.n - 1)) * PT
+
+
 def wrap(text: str, width: float, size: float, *, bold=False, mono=False, indent="") -> list[str]:
     """`text` wrapped greedily into lines of at most `width` inches (explicit newlines
-    kept; continuation lines start with `indent`)."""
+    kept; continuation lines start with `indent`). A line's width is kept as it grows
+    (`_Line`), not measured again for every word."""
     lines: list[str] = []
     for para in text.split("\n"):
-        cur = ""
+        cur = None
         for word in para.split(" "):
-            trial = f"{cur} {word}" if cur else word
-            if text_width(trial, size, bold=bold, mono=mono) <= width or not cur:
-                cur = trial
+            word_pt = _word_pt(word, size, bold, mono)
+            if cur is None or not cur.text:
+                cur = _Line(word, size, bold, mono)
+            elif cur.width_with(word_pt) <= width:
+                cur.add(word, word_pt)
             else:
-                lines.append(cur)
-                cur = indent + word
-            if text_width(cur, size, bold=bold, mono=mono) > width:
-                parts = _break_word(cur, width, size, bold, mono)
+                lines.append(cur.text)
+                cur = _Line(indent + word, size, bold, mono)
+            if cur.width > width:
+                parts = _break_word(cur.text, width, size, bold, mono)
                 lines += parts[:-1]
-                cur = parts[-1]
-        lines.append(cur)
+                cur = _Line(parts[-1], size, bold, mono)
+        lines.append(cur.text if cur is not None else "")
     return lines
 
 
