@@ -2,7 +2,8 @@
 
 Each job composes the numerical layers on a study and returns immutable data;
 `piecs_bayes.export` renders and writes it. One part: `load_probe_data`, `fit_study`,
-`bayes_study`, `compensate_study`, `toolpath_uncertainty`, `adjust_study_program`,
+`bayes_study`, `compensate_study`, `toolpath_uncertainty` (its halves
+`linearised_uncertainty`, `monte_carlo_uncertainty`), `adjust_study_program`,
 `decide_study`, `machine_data`; the main job end to end (`run_job` -> `JobResults`).
 Many parts: `fit_study_batch`, capability studies in chunks, in-process or on Dask
 (`capability_study`), `path_uncertainty_batch`, `feedback_study`. Also: the coverage
@@ -63,6 +64,8 @@ _EXPORTS = {
     "load_probe_data": "_fit",
     "pooled_sigma": "_fit",
     "toolpath_uncertainty": "_fit",
+    "linearised_uncertainty": "_fit",
+    "monte_carlo_uncertainty": "_fit",
     "InitResult": "_init",
     "ToolNose": "_init",
     "init_study": "_init",

@@ -42,8 +42,9 @@ def budget_figure(tpu, profile):
     ax = fig.add_subplot(gs[0])
     left = np.zeros(n)
     y = np.arange(n)
-    for s in sources:
-        share = np.where(tot[:n] > 0, np.asarray(budget[s], dtype=float)[:n] / tot[:n], 0.0) * 100
+    for s in sources:  # a parameter without variance (a feature not measured): no share
+        part = np.asarray(budget[s], dtype=float)[:n]
+        share = np.divide(part, tot[:n], out=np.zeros(n), where=tot[:n] > 0) * 100
         ax.barh(y, share, left=left, color=_SOURCE_COLOURS.get(s), label=s, height=0.75)
         left += share
     ax.set_yticks(y, totals, fontsize=7.5)
