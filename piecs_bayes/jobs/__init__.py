@@ -2,18 +2,17 @@
 
 Each job composes the numerical layers on a study and returns immutable data;
 `piecs_bayes.export` renders and writes it. One part: `load_probe_data`, `fit_study`,
-`bayes_study`, `compensate_study`, `toolpath_uncertainty` (its halves
-`linearised_uncertainty`, `monte_carlo_uncertainty`), `adjust_study_program`,
-`decide_study`, `machine_data`; the main job end to end (`run_job` -> `JobResults`).
-Many parts: `fit_study_batch`, capability studies in chunks, in-process or on Dask
-(`capability_study`), `path_uncertainty_batch`, `feedback_study`. Also: the coverage
+`bayes_study`, `compensate_study`, `toolpath_uncertainty` (`linearised_uncertainty` +
+`monte_carlo_uncertainty`), `adjust_study_program`, `decide_study`, `machine_data`; the
+main job end to end (`run_job` -> `JobResults`). Many parts: `fit_study_batch`,
+capability studies in chunks, in-process or on Dask (`capability_study`),
+`path_uncertainty_batch`, `feedback_study`. Also: the coverage
 check (`coverage_check`), the study's settings (`fit_options`, ...), a study from a part
 program (`init_study`), the probe plan (`plan_study`), a probe's r(theta) (`calibrate_probe`),
 the route (`apply_route`), gauge studies (`gauge_type1_study`, `gauge_rr_study`, ...).
 
-Each name is imported from its module when first used (`__getattr__`, PEP 562): a
-command pays only for the jobs it runs (`fit` imports neither the G-code reader nor
-the batch path: 0.25 s of a warm `fit`). Simulated data: `piecs_bayes.simulate`.
+Each name is imported when first used (PEP 562): a command pays only for its jobs (`fit`
+imports neither the G-code reader nor the batch path). Simulated data: `simulate`.
 """
 
 from __future__ import annotations
