@@ -234,12 +234,13 @@ def _choose_part(run: _Run, part):
 class _Beside:
     """Steps 3 to 5 as far as they need only the robust fit: the decisions, the gains
     they give, the adjusted path and its linearised uncertainty. With the Bayesian fit
-    on, a thread computes them while the sampler runs (its compiled loop leaves the
-    other core idle and releases the GIL); without it, the first `result()` computes
-    them here. Each is the step's own call on the same inputs, so the results do not
-    depend on which thread made them; the steps read them in their order, report them
-    and re-raise a failure that is not a `PiecsError` where the step would have. The
-    timings are the computations' own."""
+    on, a thread computes them while the sampler runs (its compiled loop releases the
+    GIL; on 2 cores it still uses part of the second, so the gain grows with cores:
+    docs/models/jobs.md); without it, the first `result()` computes them here. Each
+    is the step's own call on the same inputs, so the results do not depend on which
+    thread made them; the steps read them in their order, report them and re-raise a
+    failure that is not a `PiecsError` where the step would have. The timings are the
+    computations' own."""
 
     def __init__(self, run: _Run, decisions: bool, uncertainty: bool):
         self._args = (run.study, run.fit, run.probe, dict(run.gains), decisions, uncertainty)

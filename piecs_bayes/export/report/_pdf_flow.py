@@ -27,13 +27,9 @@ LEAD = 1.28
 PT = 1.0 / 72.0
 
 
-@functools.lru_cache(maxsize=8)
 def _props(size: float, bold: bool, mono: bool):
-    from matplotlib.font_manager import FontProperties
-
-    return FontProperties(
-        size=size, weight="bold" if bold else "normal", family="monospace" if mono else None
-    )
+    """The font a width is measured in: the one `PageInk` draws (`_font`)."""
+    return _font(size, "bold" if bold else "normal", "normal", "monospace" if mono else None)
 
 
 @functools.lru_cache(maxsize=65536)
