@@ -154,14 +154,17 @@ def diagnose(kept: np.ndarray, lps: np.ndarray, run_thin: int, thin, tau_factor:
 # --------------------------------------------------------------------------- sampling
 
 
-def kept_trace(name: str, log_prob, fn, *structure):
+def kept_trace(name: str, log_prob, fn, *structure, compiler_options=None):
     """`fn`, through a kept trace when `log_prob` says what it computes (a
     `trace_key` attribute: the profile model's does), else None. `structure`: the
-    rest of what the trace depends on (sizes, settings: hashable, with a full repr)."""
+    rest of what the trace depends on (sizes, settings: hashable, with a full repr);
+    `compiler_options`: those of its `compiled` programs."""
     from ... import _config
 
     key = getattr(log_prob, "trace_key", None)
-    return None if key is None else _config.KeptTrace(name, (key, *structure), fn)
+    if key is None:
+        return None
+    return _config.KeptTrace(name, (key, *structure), fn, compiler_options)
 
 
 def _kept(name: str, log_prob, fn):

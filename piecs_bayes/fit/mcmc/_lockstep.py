@@ -27,6 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ... import _config
 from ...errors import AnalysisError, InputError
 from ._core import (
     ConvergenceError,
@@ -183,8 +184,8 @@ def _kept_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: st
     """`_jax_chain`'s runner through a trace kept across processes (None when
     `log_prob` has no `trace_key`), one per model: later runs reuse its program."""
     advance = _jax_chain(log_prob, n_parts, k_ens, w, ndim, moves, thin)
-    return kept_trace("lockstep_advance", log_prob, advance,
-                      n_parts, k_ens, w, ndim, moves, thin, _BLOCK)  # fmt: skip
+    return kept_trace("lockstep_advance", log_prob, advance, n_parts, k_ens, w, ndim, moves,
+                      thin, _BLOCK, compiler_options=_config.LONG_RUNNING)  # fmt: skip
 
 
 def _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep, seed):
@@ -203,7 +204,8 @@ def _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, 
     n0 = np.asarray(0, np.int64)
     compiled = None if kept is None else kept.compiled(carry, n0, n0, args)
     if compiled is None:
-        advance = advance.lower(carry, 0, 0, args).compile()  # n_skip, n_keep: traced
+        # n_skip, n_keep: traced; thousands of steps: the faster code, not the faster compile
+        advance = advance.lower(carry, 0, 0, args).compile(_config.LONG_RUNNING)
     else:  # the trace kept across processes (~0.5 s to trace and lower): counts as arrays
 
         def advance(carry, n_skip, n_keep, args):
