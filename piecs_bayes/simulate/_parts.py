@@ -17,6 +17,7 @@ Process effects (all in mm, radius X):
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import numbers
@@ -125,6 +126,21 @@ def process_deviations(profile: Profile, errors: ProcessErrors) -> dict[str, np.
     return out
 
 
+@functools.lru_cache(maxsize=256)
+def _contact(feature):
+    """`(surface points, outward normals)` of `feature` deviated by `dev` at the
+    fractions `t`, jitted: one program per feature and count, where the ~20 eager
+    operations of each feature of each part dominated a simulated run (features are
+    frozen values: equal features share it)."""
+    import jax
+
+    def contact(t, dev):
+        s = feature.point_at(t, dev)
+        return s, feature.outward_normal(s, dev)
+
+    return jax.jit(contact)
+
+
 def simulate_probe(
     profile: Profile,
     deviations: dict[str, np.ndarray],
@@ -160,8 +176,7 @@ def simulate_probe(
         if k <= 0:
             continue
         dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
-        s = np.asarray(f.point_at(t, dev))
-        n = np.asarray(f.outward_normal(s, dev))
+        s, n = map(np.array, _contact(f)(t, dev))
         c = s + ball_radius * n + rng.normal(0.0, noise_sd, size=s.shape)
         for feat, idx, size in outliers:
             if feat == f.id and 0 <= idx < k:
