@@ -141,6 +141,14 @@ def _contact(feature):
     return jax.jit(contact)
 
 
+@functools.lru_cache(maxsize=256)
+def _contacts(feature):
+    """`_contact` of many parts at once (deviations `(P, k)`, the same fractions)."""
+    import jax
+
+    return jax.jit(jax.vmap(_contact(feature), in_axes=(None, 0)))
+
+
 def simulate_probe(
     profile: Profile,
     deviations: dict[str, np.ndarray],
@@ -288,13 +296,7 @@ def simulate_parts(
             continue
         dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
         dev = np.broadcast_to(dev, (n_parts, f.nparams))
-        t = jnp.asarray(t)
-
-        def surface(d, f=f, t=t):
-            q = f.point_at(t, d)
-            return q, f.outward_normal(q, d)
-
-        q, nrm = map(np.asarray, jax.jit(jax.vmap(surface))(jnp.asarray(dev)))
+        q, nrm = map(np.asarray, _contacts(f)(t, np.ascontiguousarray(dev)))
         r = np.broadcast_to(rb[:, None], q.shape[:2])
         if probe is not None:  # the radius at each approach angle (the inward normal)
             basis = lobe_basis(np.arctan2(-nrm[..., 1], -nrm[..., 0]).ravel(), probe.orders)
