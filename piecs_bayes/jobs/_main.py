@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 
 from ..errors import AnalysisError, InputError, PiecsError
+from ..fit.mcmc import quiet_arviz_notice
 from ..gcode import GAUGING_NAMES
 from ..io import load_study
 from ..uncertainty import normal_deviation_draws
@@ -304,6 +305,9 @@ def _step_bayes(run: _Run, bayes: bool, nsteps, seed) -> None:
     fit = None
     with run.timed("bayes"), warnings.catch_warnings(record=True) as ws:
         warnings.simplefilter("always")
+        # but arviz's import notice, which the prefetch thread may raise while this
+        # records (it did whenever the fit was done before arviz was imported)
+        quiet_arviz_notice()
         try:
             fit = bayes_study(
                 run.study, run.fit, run.probe, part=run.fit.part, nsteps=nsteps, seed=seed,
