@@ -35,6 +35,7 @@ from ..geometry import (
     make_feature,
     part_to_machine,
     profile_side,
+    surface_points,
 )
 from ..io import lobe_basis
 from ._files import probe_csv_text, study_toml_text
@@ -127,26 +128,11 @@ def process_deviations(profile: Profile, errors: ProcessErrors) -> dict[str, np.
 
 
 @functools.lru_cache(maxsize=256)
-def _contact(feature):
-    """`(surface points, outward normals)` of `feature` deviated by `dev` at the
-    fractions `t`, jitted: one program per feature and count, where the ~20 eager
-    operations of each feature of each part dominated a simulated run (features are
-    frozen values: equal features share it)."""
-    import jax
-
-    def contact(t, dev):
-        s = feature.point_at(t, dev)
-        return s, feature.outward_normal(s, dev)
-
-    return jax.jit(contact)
-
-
-@functools.lru_cache(maxsize=256)
 def _contacts(feature):
-    """`_contact` of many parts at once (deviations `(P, k)`, the same fractions)."""
+    """`surface_points` of many parts at once (deviations `(P, k)`, the same fractions)."""
     import jax
 
-    return jax.jit(jax.vmap(_contact(feature), in_axes=(None, 0)))
+    return jax.jit(jax.vmap(surface_points(feature), in_axes=(None, 0)))
 
 
 def simulate_probe(
@@ -184,7 +170,7 @@ def simulate_probe(
         if k <= 0:
             continue
         dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
-        s, n = map(np.array, _contact(f)(t, dev))
+        s, n = map(np.array, surface_points(f)(t, dev))
         c = s + ball_radius * n + rng.normal(0.0, noise_sd, size=s.shape)
         for feat, idx, size in outliers:
             if feat == f.id and 0 <= idx < k:
