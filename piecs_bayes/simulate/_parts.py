@@ -17,6 +17,7 @@ Process effects (all in mm, radius X):
 
 from __future__ import annotations
 
+import collections
 import functools
 import json
 import math
@@ -127,6 +128,23 @@ def process_deviations(profile: Profile, errors: ProcessErrors) -> dict[str, np.
     return out
 
 
+#: how often each feature has been probed in this process (`_contact`)
+_PROBED: collections.Counter = collections.Counter()
+
+
+def _contact(feature, t, dev) -> tuple[np.ndarray, np.ndarray]:
+    """Contact points and outward normals of `feature` deviated by `dev` at the
+    fractions `t`: eagerly the first time a feature is probed (a program's features
+    are often probed once: compiling each would cost more), through its compiled
+    program (`surface_points`) once it is probed again (a run's parts: ~20 eager
+    operations per feature and part were most of simulating one)."""
+    _PROBED[feature] += 1
+    if _PROBED[feature] == 1:
+        s = np.asarray(feature.point_at(t, dev))
+        return s, np.asarray(feature.outward_normal(s, dev))
+    return tuple(map(np.array, surface_points(feature)(t, dev)))
+
+
 @functools.lru_cache(maxsize=256)
 def _contacts(feature):
     """`surface_points` of many parts at once (deviations `(P, k)`, the same fractions)."""
@@ -170,7 +188,7 @@ def simulate_probe(
         if k <= 0:
             continue
         dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
-        s, n = map(np.array, surface_points(f)(t, dev))
+        s, n = _contact(f, t, dev)
         c = s + ball_radius * n + rng.normal(0.0, noise_sd, size=s.shape)
         for feat, idx, size in outliers:
             if feat == f.id and 0 <= idx < k:

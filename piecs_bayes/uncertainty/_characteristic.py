@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import AnalysisError, InputError
 from ..fit import CALIBRATION_SOURCE, arc_distance, effective_dof, geometry_args, line_distance
-from ..geometry import Line, drawn_scale, surface_points
+from ..geometry import Line, drawn_scale
 
 #: the fixed characteristic points, as fractions of the nominal feature
 AT_FRACTION = {"start": 0.0, "mid": 0.5, "end": 1.0}
@@ -67,7 +67,8 @@ def normal_deviation_at(feature, dev, q):
 @functools.lru_cache(maxsize=4096)
 def nominal_points(feature, ts: tuple[float, ...]):
     """Nominal points, outward normals and model geometry of `feature` at `ts` (cached)."""
-    q, n = map(np.asarray, surface_points(feature)(np.asarray(ts, dtype=float), feature.zero()))
+    q = np.asarray(feature.point_at(jnp.asarray(ts, dtype=float)))
+    n = np.asarray(feature.outward_normal(jnp.asarray(q)))
     return q, n, geometry_args(feature)
 
 
