@@ -239,8 +239,8 @@ def surface_points(feature: Feature):
     """`(t, dev) -> (points, outward normals)` of `feature` deviated by `dev` at the
     fractions `t` of its nominal length, jitted: one compiled program per feature and
     count of fractions (features are frozen values: equal ones share it), where the
-    two eager calls dispatch ~20 small operations each (simulated probing, nominal
-    points of the uncertainty budget)."""
+    two eager calls dispatch ~20 small operations each (simulated probing of many
+    parts of one profile)."""
 
     def contact(t, dev):
         q = feature.point_at(t, dev)

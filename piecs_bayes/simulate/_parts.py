@@ -128,8 +128,10 @@ def process_deviations(profile: Profile, errors: ProcessErrors) -> dict[str, np.
     return out
 
 
-#: how often each feature has been probed in this process (`_contact`)
+#: how often each feature has been probed in this process (`_contact`); forgotten
+#: past this many features (a long process of many programs)
 _PROBED: collections.Counter = collections.Counter()
+_PROBED_MAX = 4096
 
 
 def _contact(feature, t, dev) -> tuple[np.ndarray, np.ndarray]:
@@ -138,6 +140,8 @@ def _contact(feature, t, dev) -> tuple[np.ndarray, np.ndarray]:
     are often probed once: compiling each would cost more), through its compiled
     program (`surface_points`) once it is probed again (a run's parts: ~20 eager
     operations per feature and part were most of simulating one)."""
+    if len(_PROBED) >= _PROBED_MAX:
+        _PROBED.clear()
     _PROBED[feature] += 1
     if _PROBED[feature] == 1:
         s = np.asarray(feature.point_at(t, dev))
