@@ -22,8 +22,6 @@ from .lsq import LsqArrays, SolverOptions, Status, solve_arrays
 #: probed parts is not padded to 256 problems and a call's arrays stay ~10 MB.
 #: Like `BATCH` (`BatchOptions`' default), it depends on the bucket only: one compilation per group.
 BATCH_POINTS = 1 << 16
-#: batch size of the Levenberg-Marquardt retries of `solver="auto"`
-_RETRY_BATCH = 8
 #: fields of `LsqArrays` kept per problem (all of them: `profile_fit` rebuilds results)
 _FIELDS = LsqArrays._fields
 
@@ -92,28 +90,29 @@ def batch_rows(bsize: int, n_pad: int) -> int:
     return max(1, min(int(bsize), BATCH_POINTS // int(n_pad)))
 
 
-def _solve_rows(solve, rows, data, bsize, st: Settings) -> dict:
-    """Pad `rows` (problem numbers) to `bsize` problems and solve (synchronously)."""
-    return fetch(dispatch(solve, rows, data, bsize, st), rows.size)
-
-
 def dispatch(solve, rows, data, bsize, st: Settings):
     """Start the solve of `rows` padded to `bsize` problems (asynchronous). `data`:
     `(pp, ff, counts, starts, order, centres, geoms, n_pad)`, the problems' part
     and feature, the points per (part, feature), where they start in `order`, the
     point order, the points, the geometry table and the group's bucket."""
-    pp, ff, counts, starts, order, centres, geoms, n_pad = data
     take = np.concatenate([rows, np.repeat(rows[:1], bsize - rows.size)])
-    cnt = counts[pp[take], ff[take]]
-    start = starts[pp[take], ff[take]]
-    j = np.arange(n_pad)
-    # padding repeats the problem's first point (as fit_feature does), weight zero
-    idx = start[:, None] + np.where(j[None, :] < cnt[:, None], j[None, :], 0)
-    pts = centres[order[idx]]
-    w = (j[None, :] < cnt[:, None]).astype(float)
-    geom = _stack_geometry(geoms, ff[take])
+    pts, geom, w = _problems(take, data)
+    geom = tuple(jnp.asarray(leaf) for leaf in geom)
     args = (jnp.asarray(pts), geom, st.ball_radius, jnp.asarray(w), st.scale, st.sigma)
     return _packed(solve)(*args), _unpacker(solve, jax.tree_util.tree_map(jnp.shape, args))
+
+
+def _problems(rows, data):
+    """The problems `rows` as solved: points padded to the group's bucket by repeating
+    the first (as `fit_feature` pads them) with weight zero, `(m, n_pad, 2)`; their
+    nominal geometry (leaves `(m, ...)`); the weights `(m, n_pad)`."""
+    pp, ff, counts, starts, order, centres, geoms, n_pad = data
+    cnt = counts[pp[rows], ff[rows]]
+    start = starts[pp[rows], ff[rows]]
+    j = np.arange(n_pad)
+    idx = start[:, None] + np.where(j[None, :] < cnt[:, None], j[None, :], 0)
+    w = (j[None, :] < cnt[:, None]).astype(float)
+    return centres[order[idx]], tuple(leaf[ff[rows]] for leaf in geoms), w
 
 
 @functools.lru_cache(maxsize=128)
@@ -166,17 +165,24 @@ def fetch(dev, m: int) -> dict:
 
 def retry_lm(out: dict, rows, data, kind, free, st: Settings) -> None:
     """`solver="auto"`: problems that Gauss-Newton did not solve are solved again
-    with Levenberg-Marquardt (`fit_feature`'s solver), in place; their status is
-    then LM's, so a failure is the failure the loop reports."""
+    with Levenberg-Marquardt, in place, one by one as the loop (`fit_feature`) solves
+    them: the same residual function, padded points, start and settings, so their
+    status, and a failure's message, are the loop's. One problem at a time compiles
+    the loop's solve (~1 s), not a batched one (8-15 s, for a few retried problems:
+    the 3-point faces of `tests/jobs/test_coverage.py` that a robust fit leaves
+    DEGENERATE)."""
     bad = np.flatnonzero(out["status_code"] != int(Status.SUCCESSFUL))
     if bad.size == 0:
         return
-    solve = _engine_group_solver(kind, free, st.loss, "lm", st.rtol, st.atol, st.max_steps)
-    for lo in range(0, bad.size, _RETRY_BATCH):
-        sub = bad[lo : lo + _RETRY_BATCH]
-        again = _solve_rows(solve, rows[sub], data, _RETRY_BATCH, st)
+    fn = feature_residuals(kind, free)
+    options = SolverOptions(method="lm", rtol=st.rtol, atol=st.atol, max_steps=st.max_steps)
+    pts, geom, w = _problems(rows[bad], data)
+    for i, b in enumerate(bad):
+        args = (pts[i], tuple(leaf[i] for leaf in geom), st.ball_radius)
+        res = solve_arrays(fn, jnp.zeros(len(free)), args, w[i], loss=st.loss,
+                           scale=st.scale, sigma=st.sigma, solver=options)  # fmt: skip
         for name in out:
-            out[name][sub] = again[name]
+            out[name][b] = np.asarray(getattr(res, name))
 
 
 @functools.lru_cache(maxsize=64)
@@ -185,8 +191,3 @@ def geometry_table(profile: Profile) -> tuple[np.ndarray, ...]:
     cached per profile (building it takes ~100 eager JAX operations)."""
     geoms = [geometry_args(f) for f in profile.features]
     return tuple(np.stack([np.asarray(g[k]) for g in geoms]) for k in range(len(geoms[0])))
-
-
-def _stack_geometry(table: tuple, which: np.ndarray):
-    """Per-problem nominal geometry `(B, ...)` from the stacked table."""
-    return tuple(jnp.asarray(leaf[which]) for leaf in table)

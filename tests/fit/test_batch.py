@@ -172,6 +172,58 @@ def test_failures_are_reported_with_the_loops_message(study_probe):
     assert "1 failed" in repr(batch) and "NONFINITE" in repr(batch)
 
 
+def _three_point_faces(n_parts, seed=1):
+    """`n_parts` parts of the demo's end face probed at 3 points (1 residual dof), each
+    point 1.5 um of noise off the face: under Huber with the scale estimated, most
+    such fits keep fewer effective points than parameters + 1 (DEGENERATE)."""
+    from piecs_bayes.simulate import demo_profile
+
+    profile = demo_profile()
+    face = next(f for f in profile.features if f.id == "face_end")
+    surface = np.asarray(face.point_at(jnp.array([0.2, 0.5, 0.8])))
+    normal = np.asarray(face.outward_normal(surface))
+    noise = np.random.default_rng(seed).normal(0.0, 0.0015, (n_parts, 3))
+    pts = (surface[None] + (1.0 + noise)[..., None] * normal[None]).reshape(-1, 2)
+    parts = np.repeat([f"p{i:02d}" for i in range(n_parts)], 3)
+    return profile, parts, np.full(parts.size, "face_end"), pts
+
+
+def test_what_the_kernel_leaves_is_solved_as_the_loop_solves_it():
+    """`solver="auto"` sends each problem the kernel did not solve to the loop's own
+    Levenberg-Marquardt solve (`fit_feature`), one by one: such a part's status and
+    failure message, or its fit, are the loop's; the rest keep the kernel's. Equally
+    spaced 3-point faces under Huber are the hard case: most are DEGENERATE, and the
+    kernel and LM part ways on which (their residual pattern puts the middle point
+    on the edge of Huber's zone)."""
+    from piecs_bayes.fit import _batch_solve, fit_profile
+
+    profile, parts, ids, pts = _three_point_faces(24)
+    opts = FitOptions(method="robust", loss="huber")
+    batched_lm = _batch_solve._engine_group_solver.cache_info().misses
+    auto = fit_profiles(profile, parts, ids, pts, ball_radius=1.0, options=opts)
+    # no batched LM built for the retries (a compilation of 8-15 s)
+    assert _batch_solve._engine_group_solver.cache_info().misses == batched_lm
+    fast = fit_profiles(profile, parts, ids, pts, ball_radius=1.0,
+                        options=replace(opts, solver="fast"))  # fmt: skip
+    kernel_ok = fast.status("face_end") == Status.SUCCESSFUL
+    retried_ok = ~kernel_ok & (auto.status("face_end") == Status.SUCCESSFUL)
+    assert 5 <= np.sum(~kernel_ok) < 24 and retried_ok.any()  # LM solves some of them
+    for i, part in enumerate(auto.parts):
+        if kernel_ok[i]:
+            assert auto.status("face_end")[i] == Status.SUCCESSFUL
+            np.testing.assert_array_equal(auto.values("face_end")[i], fast.values("face_end")[i])
+            continue
+        rows = parts == part
+        try:
+            loop = fit_profile(profile, ids[rows], pts[rows], part=part, ball_radius=1.0,
+                               options=replace(opts, solver="lm"),
+                               lines=np.flatnonzero(rows) + 1)  # fmt: skip
+        except AnalysisError as exc:
+            assert auto.part_error(part) == str(exc)
+        else:
+            _assert_same_fit(loop, auto.profile_fit(part))
+
+
 def test_input_errors_match_the_loop(study_probe):
     study, probe = study_probe
     few = ~((probe.part == "part02") & (probe.feature == "taper")) | (
