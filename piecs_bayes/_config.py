@@ -232,7 +232,11 @@ class LazyModule:
     def __getattr__(self, attr: str):
         import importlib
 
-        return getattr(importlib.import_module(self._name), attr)
+        value = getattr(importlib.import_module(self._name), attr)
+        # kept: later reads are plain attribute reads (through `import_module` they
+        # cost ~7 us each, 0.6 s of the 87,000 in a feedback study)
+        self.__dict__[attr] = value
+        return value
 
     def __repr__(self) -> str:
         return f"LazyModule({self._name!r})"

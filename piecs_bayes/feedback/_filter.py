@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import _config
+from ._mixture import logsumexp
 
 special = _config.LazyModule("scipy.special")
 
@@ -40,7 +41,7 @@ def _prior_k(p_odd, p_step, declared):
 def _merge(logw, *moments):
     """Moment-match Gaussians `(B, M)` (log weights, then `a, d, p11, p12, p22`) over
     axis 1: `(log total weight, a, d, p11, p12, p22)`, each `(B,)`."""
-    lt = special.logsumexp(logw, axis=1)
+    lt = logsumexp(logw, axis=1)
     g = np.exp(logw - lt[:, None])
     a, d, p11, p12, p22 = moments
     ma, md = np.sum(g * a, 1), np.sum(g * d, 1)
@@ -268,9 +269,9 @@ def mixture_filter(y, r, par, declared, memory: int = STEP_MEMORY, *, ahead: int
         logn = np.where(first[:, None, None] | ~sn, 0.0, logn)
         logp = logw_prev[:, :, None] + pri_k[:, None, :]  # prior weights, no data
         logj = (logp + logn).reshape(b, 3 * c_n)
-        tot = special.logsumexp(logj, axis=1)
+        tot = logsumexp(logj, axis=1)
         out["loglik"][:, k] = np.where(first | ~seen, 0.0, tot)
-        pw = np.exp(logp - special.logsumexp(logp.reshape(b, -1), 1)[:, None, None])
+        pw = np.exp(logp - logsumexp(logp.reshape(b, -1), 1)[:, None, None])
         if mixture:
             out["pw"][:, k] = pw.reshape(b, -1)
             out["pm"][:, k] = np.where(first[:, None], np.nan, ea.reshape(b, -1))

@@ -16,6 +16,28 @@ from .. import _config
 special = _config.LazyModule("scipy.special")
 
 
+def logsumexp(a, axis=None, keepdims=False):
+    """`scipy.special.logsumexp(a, axis, keepdims=keepdims)` of a real array, computed
+    as it computes it (the largest terms apart, `log1p` of the rest: the same
+    numbers), without its array-API dispatch: ~0.5 ms a call, 2 s of the 4,000 in
+    a feedback study. A result that is not finite (a row of -inf, an inf, a NaN) is
+    `log(sum(exp(a)))`, as there."""
+    a = np.asarray(a, dtype=float)
+    a_max = np.max(a, axis=axis, keepdims=True)
+    top = a == a_max
+    m = np.sum(top, axis=axis, keepdims=True, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        s = np.sum(np.exp(np.where(top, -np.inf, a) - a_max), axis=axis, keepdims=True)
+        s = np.where(s == 0, s, s / m)
+        out = np.log1p(s) + np.log(m) + a_max
+        bad = ~np.isfinite(out)
+        if bad.any():
+            out = np.where(bad, np.log(np.sum(np.exp(a), axis=axis, keepdims=True)), out)
+    if not keepdims:
+        out = np.squeeze(out, axis=axis)
+    return out[()] if out.ndim == 0 else out
+
+
 def mixture_cdf(x, w, m, s):
     """The distribution function at `x` of Gaussian mixtures `(..., C)` of weights `w`,
     means `m` and sds `s` (NaN rows give NaN)."""

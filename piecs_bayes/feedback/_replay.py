@@ -31,6 +31,7 @@ from ._controllers import (
     siemens_step,
 )
 from ._filter import mixture_filter
+from ._mixture import logsumexp
 from ._tracking import GRID_LOG_PRIOR, HYPER_GRID, grid_weights, model_params
 
 special = _config.LazyModule("scipy.special")
@@ -205,7 +206,7 @@ def _bayes_chunk(dev, u, declared, tolerance, ds, model, transfer, inspected, so
 
     def _decide(out, cum_j, j, d, e, c_prev):
         lw = cum_j + log_prior[None, :]
-        w = np.exp(lw - special.logsumexp(lw, axis=1, keepdims=True))[:, :, None]
+        w = np.exp(lw - logsumexp(lw, axis=1, keepdims=True))[:, :, None]
         m, v, spread = window(out["am"][:, j, d : d + e].reshape(r_, ng, e),
                               out["av"][:, j, d : d + e].reshape(r_, ng, e), w)  # fmt: skip
         sd = np.sqrt(beta**2 * v + u_beta**2 * m**2)

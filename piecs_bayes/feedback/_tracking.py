@@ -26,7 +26,7 @@ import numpy as np
 from .. import _config
 from ..errors import InputError
 from ._filter import mixture_filter, smoother
-from ._mixture import mixture_cdf, mixture_quantile
+from ._mixture import logsumexp, mixture_cdf, mixture_quantile
 
 optimize = _config.LazyModule("scipy.optimize")
 special = _config.LazyModule("scipy.special")
@@ -359,7 +359,7 @@ def grid_weights(loglik: np.ndarray, log_prior=None) -> np.ndarray:
     cum = np.concatenate([np.zeros(loglik.shape[:2] + (1,)), np.cumsum(loglik, axis=2)], 2)
     if log_prior is not None:
         cum = cum + np.asarray(log_prior)[None, :, None]
-    return np.exp(cum - special.logsumexp(cum, axis=1, keepdims=True))
+    return np.exp(cum - logsumexp(cum, axis=1, keepdims=True))
 
 
 def level_average(out: dict, wts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -489,7 +489,7 @@ def track(values, u, *, model: TrackModel | None = None, tool_changes=(), transf
         model=best,
         weights=None if model is not None else _ro(fin),
         weights_by_part=None if model is not None else _ro(wts[0].T),
-        loglik=float(special.logsumexp(out["loglik"][0].sum(1) + (0.0 if model is not None
+        loglik=float(logsumexp(out["loglik"][0].sum(1) + (0.0 if model is not None
                                                                     else GRID_LOG_PRIOR))),
         transfer=(beta, u_beta),
     )  # fmt: skip

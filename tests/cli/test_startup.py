@@ -82,3 +82,17 @@ def test_the_late_imports_in_their_thread_say_nothing(tmp_path):
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "arviz,matplotlib.backends.backend_pdf"
     assert "ArviZ" not in out.stderr and "Warning" not in out.stderr, out.stderr
+
+
+def test_a_lazy_module_imports_once_and_keeps_what_was_read():
+    """`LazyModule` imports on the first read and keeps each attribute it read, so a
+    hot loop's later reads are plain attribute reads."""
+    from piecs_bayes import _config
+
+    lazy = _config.LazyModule("json")
+    assert "dumps" not in vars(lazy)
+    import json
+
+    assert lazy.dumps is json.dumps and vars(lazy)["dumps"] is json.dumps
+    with pytest.raises(AttributeError):
+        _ = lazy.no_such_name

@@ -365,3 +365,28 @@ def test_mixture_quantile_is_the_root_of_the_mixture_cdf():
     for i in (0, 13, 42, 49):
         alone = mixture_quantile(0.975, w[i : i + 1], mm[i : i + 1], ss[i : i + 1])[0]
         assert q.reshape(-1)[i] == pytest.approx(alone, abs=1e-15)
+
+
+@pytest.mark.parametrize(
+    "shape, axis, keepdims",
+    [((6, 9), 1, False), ((6, 9), 0, True), ((4, 3, 5), 1, True), ((9,), None, False)],
+)
+def test_logsumexp_is_scipys_to_the_bit(shape, axis, keepdims):
+    """The filter's log-sum-exp gives scipy's numbers exactly (the same arithmetic),
+    ties at the maximum, rows of -inf and a NaN included."""
+    from scipy import special
+
+    from piecs_bayes.feedback._mixture import logsumexp
+
+    rng = np.random.default_rng(7)
+    a = rng.normal(0.0, 40.0, shape)
+    a.flat[1] = a.flat[2]  # a tie at the maximum of its row
+    if a.ndim > 1:
+        a[0] = -np.inf
+        a[-1].flat[0] = np.nan
+    ours, theirs = (
+        logsumexp(a, axis=axis, keepdims=keepdims),
+        special.logsumexp(a, axis=axis, keepdims=keepdims),
+    )
+    assert np.shape(ours) == np.shape(theirs)
+    np.testing.assert_array_equal(ours, theirs)
