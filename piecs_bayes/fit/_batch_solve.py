@@ -41,9 +41,9 @@ class Settings(NamedTuple):
     sigma: jax.Array
 
 
-@functools.lru_cache(maxsize=64)
-def _engine_group_solver(kind, free, loss, solver, rtol, atol, max_steps):
-    """Jitted `vmap` of `solve_arrays` for one residual function and settings."""
+def _engine_one(kind, free, loss, solver, rtol, atol, max_steps):
+    """One problem solved as `fit_feature` solves it: `solve_arrays` from zero with
+    the feature's residual function and the settings."""
     fn = feature_residuals(kind, free)
     p = len(free)
     options = SolverOptions(method=solver, rtol=rtol, atol=atol, max_steps=max_steps)
@@ -60,16 +60,31 @@ def _engine_group_solver(kind, free, loss, solver, rtol, atol, max_steps):
             solver=options,
         )
 
+    return one
+
+
+@functools.lru_cache(maxsize=64)
+def _engine_group_solver(kind, free, loss, solver, rtol, atol, max_steps):
+    """Jitted `vmap` of `solve_arrays` for one residual function and settings."""
+    one = _engine_one(kind, free, loss, solver, rtol, atol, max_steps)
+
     def solve(points, geom, ball_radius, weights, scale, sigma):
         # in slices small enough for jaxlib's LAPACK kernels (QR, SVD) to run
         # inline: split over XLA's intra-op threads they can deadlock
         return jax.lax.map(
             lambda a: one(*a[:2], ball_radius, a[2], scale, sigma),
             (points, geom, weights),
-            batch_size=svd_batch(points.shape[0], points.shape[1], p),
+            batch_size=svd_batch(points.shape[0], points.shape[1], len(free)),
         )
 
     return jax.jit(solve)
+
+
+@functools.lru_cache(maxsize=64)
+def _lm_retry_solver(kind, free, loss, rtol, atol, max_steps):
+    """`_engine_one` with LM, jitted: a call dispatches in ~0.1 ms, where the engine's
+    own entry (`solve_arrays`' eager preparation, `equinox.filter_jit`) takes ~1 ms."""
+    return jax.jit(_engine_one(kind, free, loss, "lm", rtol, atol, max_steps))
 
 
 def group_solver(st: Settings, kind: str, free: tuple[int, ...], n_pad: int):
@@ -168,21 +183,19 @@ def retry_lm(out: dict, rows, data, kind, free, st: Settings) -> None:
     with Levenberg-Marquardt, in place, one by one as the loop (`fit_feature`) solves
     them: the same residual function, padded points, start and settings, so their
     status, and a failure's message, are the loop's. One problem at a time compiles
-    the loop's solve (~1 s), not a batched one (8-15 s, for a few retried problems:
+    the loop's solve (~1-2 s), not a batched one (8-15 s, for a few retried problems:
     the 3-point faces of `tests/jobs/test_coverage.py` that a robust fit leaves
-    DEGENERATE)."""
+    DEGENERATE); each then costs ~1 ms."""
     bad = np.flatnonzero(out["status_code"] != int(Status.SUCCESSFUL))
     if bad.size == 0:
         return
-    fn = feature_residuals(kind, free)
-    options = SolverOptions(method="lm", rtol=st.rtol, atol=st.atol, max_steps=st.max_steps)
+    solve = _lm_retry_solver(kind, free, st.loss, st.rtol, st.atol, st.max_steps)
     pts, geom, w = _problems(rows[bad], data)
     for i, b in enumerate(bad):
-        args = (pts[i], tuple(leaf[i] for leaf in geom), st.ball_radius)
-        res = solve_arrays(fn, jnp.zeros(len(free)), args, w[i], loss=st.loss,
-                           scale=st.scale, sigma=st.sigma, solver=options)  # fmt: skip
+        geom_i = tuple(leaf[i] for leaf in geom)
+        res = jax.device_get(solve(pts[i], geom_i, st.ball_radius, w[i], st.scale, st.sigma))
         for name in out:
-            out[name][b] = np.asarray(getattr(res, name))
+            out[name][b] = getattr(res, name)
 
 
 @functools.lru_cache(maxsize=64)
