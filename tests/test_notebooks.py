@@ -19,8 +19,12 @@ from pathlib import Path
 
 import pytest
 
-nbformat = pytest.importorskip("nbformat")
-nbclient = pytest.importorskip("nbclient")
+
+def _nbformat():
+    """nbformat, imported by the tests that read a notebook: not at collection, where
+    every worker paid its 1.5 s (jsonschema's format checkers build a grammar)."""
+    return pytest.importorskip("nbformat")
+
 
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 ALL = sorted(NOTEBOOKS.glob("*.ipynb"))
@@ -28,6 +32,7 @@ LIMIT_S = 120.0  # each notebook, on the 2-core machine
 
 
 def _execute(nb, cwd: Path, timeout: float):
+    nbclient = pytest.importorskip("nbclient")
     os.environ["MPLBACKEND"] = "Agg"
     os.environ["JAX_PLATFORMS"] = "cpu"
     client = nbclient.NotebookClient(
@@ -52,6 +57,7 @@ def test_the_six_notebooks_are_there():
 
 @pytest.mark.parametrize("path", ALL, ids=[p.stem for p in ALL])
 def test_stored_without_outputs(path):
+    nbformat = _nbformat()
     nb = nbformat.read(path, as_version=4)
     nbformat.validate(nb)
     for cell in nb.cells:
@@ -62,6 +68,7 @@ def test_stored_without_outputs(path):
 
 @pytest.mark.slow
 def test_kernel_is_this_environment(tmp_path):
+    nbformat = _nbformat()
     nb = nbformat.v4.new_notebook()
     nb.cells.append(nbformat.v4.new_code_cell("import sys; print(sys.prefix)"))
     _execute(nb, tmp_path, 60)
@@ -71,6 +78,7 @@ def test_kernel_is_this_environment(tmp_path):
 
 @pytest.mark.parametrize("path", ALL, ids=[p.stem for p in ALL])
 def test_code_parses_and_its_imports_exist(path):
+    nbformat = _nbformat()
     nb = nbformat.read(path, as_version=4)
     imported = 0
     for i, cell in enumerate(c for c in nb.cells if c.cell_type == "code"):
@@ -95,6 +103,7 @@ def test_code_parses_and_its_imports_exist(path):
 @pytest.mark.slow
 @pytest.mark.parametrize("path", ALL, ids=[p.stem for p in ALL])
 def test_notebook_runs_in_time(path):
+    nbformat = _nbformat()
     nb = nbformat.read(path, as_version=4)
     t0 = time.perf_counter()
     _execute(nb, NOTEBOOKS, LIMIT_S + 60)  # nbclient's limit is per cell; ours is below
