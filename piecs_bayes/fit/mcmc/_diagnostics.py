@@ -28,11 +28,13 @@ def arviz_layout(kept: np.ndarray) -> np.ndarray:
 
 
 def rank_normalise(x: np.ndarray) -> np.ndarray:
-    """Normal scores of the pooled ranks (average ties), Blom's offset 3/8."""
-    from scipy import stats  # lazily: scipy.stats costs ~0.5 s of import time
+    """Normal scores of the pooled ranks (average ties), Blom's offset 3/8:
+    `scipy.stats.norm.ppf` of them is `special.ndtri` (times 1, plus 0), without its
+    argument checks (~0.3 ms a call, two per parameter and part)."""
+    from scipy import special, stats  # lazily: scipy.stats costs ~0.5 s of import time
 
     r = stats.rankdata(x, axis=None).reshape(x.shape)
-    return stats.norm.ppf((r - 0.375) / (x.size + 0.25))
+    return special.ndtri((r - 0.375) / (x.size + 0.25))
 
 
 def _split(x: np.ndarray) -> np.ndarray:
