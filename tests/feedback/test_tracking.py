@@ -367,6 +367,32 @@ def test_mixture_quantile_is_the_root_of_the_mixture_cdf():
         assert q.reshape(-1)[i] == pytest.approx(alone, abs=1e-15)
 
 
+def test_a_mixture_of_thousands_of_components_starts_from_its_heaviest():
+    """The grid's predictive mixes ~14,000 normals: the quantile starts from that of
+    the heaviest 256 and ends at the whole mixture's root (a root finder's to 1e-13,
+    its distribution function p to 1e-12), each row as alone."""
+    from scipy import optimize, special
+
+    from piecs_bayes.feedback._mixture import COARSE_COMPONENTS, mixture_cdf, mixture_quantile
+
+    rng = np.random.default_rng(11)
+    rows, c = 4, 6 * COARSE_COMPONENTS
+    w = rng.dirichlet(np.full(c, 0.3), rows)  # a few heavy, many light components
+    mm = rng.normal(0.0, 0.004, (rows, c)) + rng.normal(0.0, 0.002, (rows, 1))
+    ss = rng.uniform(0.0008, 0.006, (rows, c))
+    for p in (0.025, 0.975):
+        q = mixture_quantile(p, w, mm, ss)
+        for i in range(rows):
+
+            def cdf(x, i=i, p=p):
+                return float(np.sum(w[i] * special.ndtr((x - mm[i]) / ss[i]))) - p
+
+            assert q[i] == pytest.approx(optimize.brentq(cdf, -1, 1, xtol=1e-16), abs=1e-13)
+            assert float(mixture_cdf(q[i], w[i], mm[i], ss[i])) == pytest.approx(p, abs=1e-12)
+            alone = mixture_quantile(p, w[i : i + 1], mm[i : i + 1], ss[i : i + 1])[0]
+            assert q[i] == pytest.approx(alone, abs=1e-15)
+
+
 @pytest.mark.parametrize(
     "shape, axis, keepdims",
     [((6, 9), 1, False), ((6, 9), 0, True), ((4, 3, 5), 1, True), ((9,), None, False)],
