@@ -23,6 +23,7 @@ from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 def left_normal(d):
@@ -121,6 +122,27 @@ class Line:
 
     def zero(self):
         return jnp.zeros(self.nparams)
+
+    def drawn_at(self, t):
+        """``(points, outward normals)`` of the nominal line at fractions ``t``, in
+        NumPy: what a figure draws, without the dozen JAX operations that `point_at`
+        and `outward_normal` dispatch one by one (0.3 s of a report's profile figure)."""
+        t = np.asarray(t, dtype=float)[..., None]
+        p0, p1 = np.asarray(self.p0, dtype=float), np.asarray(self.p1, dtype=float)
+        q = p0 + t * (p1 - p0)
+        d = (p1 - p0) / math.dist(self.p0, self.p1)
+        return q, np.broadcast_to(self.side * np.array([d[1], -d[0]]), q.shape)
+
+    def drawn_distance(self, p, dev):
+        """`signed_distance` of points `p` from the line deviated by `dev`, in NumPy
+        (as `drawn_at`)."""
+        p0, p1 = np.asarray(self.p0, dtype=float), np.asarray(self.p1, dtype=float)
+        d = (p1 - p0) / math.dist(self.p0, self.p1)
+        n = self.side * np.array([d[1], -d[0]])
+        e, theta = np.asarray(dev, dtype=float)
+        c, s = math.cos(theta), math.sin(theta)
+        n_rot = np.array([c * n[0] + s * n[1], -s * n[0] + c * n[1]])
+        return (np.asarray(p, dtype=float) - ((p0 + p1) / 2 + e * n)) @ n_rot
 
 
 @dataclass(frozen=True)
@@ -229,6 +251,21 @@ class Arc:
 
     def zero(self):
         return jnp.zeros(self.nparams)
+
+    def drawn_at(self, t):
+        """``(points, outward normals)`` of the nominal arc at fractions ``t`` of its
+        sweep, in NumPy (as `Line.drawn_at`)."""
+        a0, sweep = self._angles()
+        ang = a0 + np.asarray(t, dtype=float) * sweep
+        u = np.stack([np.sin(ang), np.cos(ang)], axis=-1)
+        return np.asarray(self.center, dtype=float) + self.radius * u, self.sense * u
+
+    def drawn_distance(self, p, dev):
+        """`signed_distance` of points `p` from the arc deviated by `dev`, in NumPy
+        (as `Line.drawn_at`)."""
+        dev = np.asarray(dev, dtype=float)
+        v = np.asarray(p, dtype=float) - (np.asarray(self.center, dtype=float) + dev[:2])
+        return self.sense * (np.linalg.norm(v, axis=-1) - (self.radius + dev[2]))
 
 
 Feature = Line | Arc

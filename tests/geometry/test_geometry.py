@@ -52,6 +52,35 @@ def test_points_built_on_a_feature_have_zero_distance(feature, dev_scale):
     assert np.allclose(feature.closest_point(off, dev), pts, atol=1e-12)
 
 
+_ARCS = [  # both senses of travel, material on either side, a sweep across +-pi
+    Arc("cw", (15.0, -57.0), (18.0, -60.0), (18.0, -57.0), ccw=False, side=-1),
+    Arc("ccw", (18.0, -60.0), (15.0, -57.0), (18.0, -57.0), ccw=True, side=1),
+    Arc("big", (10.0, -5.0), (10.0, 5.0), (10.0, 0.0), ccw=False, side=1),
+    Arc("wrap", (10.0, 5.0), (10.0, -5.0), (10.0, 0.0), ccw=False, side=-1),
+]
+
+
+@pytest.mark.parametrize(
+    "feature", [LINE, TAPER, Line("r", (0.0, 0.0), (-3.0, 4.0), side=1), *_ARCS]
+)
+def test_drawn_points_and_normals_are_the_models(feature):
+    """`drawn_at` (NumPy, for figures) gives `point_at` and `outward_normal` of the
+    feature as drawn."""
+    t = np.linspace(0.0, 1.0, 17)
+    q, n = feature.drawn_at(t)
+    assert isinstance(q, np.ndarray) and q.shape == n.shape == (17, 2)
+    np.testing.assert_allclose(q, feature.point_at(jnp.asarray(t)), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(n, feature.outward_normal(jnp.asarray(q)), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(q[[0, -1]], [feature.p0, feature.p1], rtol=0, atol=1e-12)
+    # and the distance of points near it from the feature deviated, as `signed_distance`
+    dev = np.array([0.013, -0.002, 0.004][: feature.nparams])
+    near = q + np.linspace(-0.3, 0.3, 17)[:, None] * n + 0.1 * np.roll(n, 1, axis=-1)
+    d = feature.drawn_distance(near, dev)
+    assert isinstance(d, np.ndarray) and d.shape == (17,)
+    want = feature.signed_distance(jnp.asarray(near), jnp.asarray(dev))
+    np.testing.assert_allclose(d, want, rtol=0, atol=1e-12)
+
+
 def test_line_deviation_parameters_mean_what_they_say():
     # offset 0.01 along +x at the mid-point (z=-15), rotation 0.001 rad CCW about it
     point, direction, _ = LINE.actual(jnp.array([0.01, 0.001]))

@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 
 from ...geometry import drawn_limits, drawn_scale
-from ...uncertainty import normal_deviation_at
 from ._base import contour_s, label_features, new_figure, nice_step
 
 
@@ -15,7 +14,7 @@ def auto_exaggeration(res) -> float:
     features, inlier probe points, the adjusted path's band) at about 1/6 of the
     part's radial extent. Outliers are left out: a chip would shrink everything else."""
     prof = res.study.profile
-    pts = np.vstack([np.asarray(f.point_at(np.linspace(0, 1, 5))) for f in prof.features])
+    pts = np.vstack([f.drawn_at(np.linspace(0, 1, 5))[0] for f in prof.features])
     extent = max(float(np.ptp(pts[:, 0])), 1e-3)
     big = 0.0
     for f in res.fit:
@@ -48,7 +47,7 @@ class _Once:
 def _draw_fitted(ax, f, ff, q, n, fac, once):
     """One fitted feature at nominal points `q` (normals `n`), its probe points and
     outliers, deviations exaggerated by `fac`."""
-    d = np.asarray(normal_deviation_at(f, ff.values, q))
+    d = -f.drawn_distance(q, ff.values)
     p = q + fac * d[:, None] * n
     ax.plot(p[:, 1], p[:, 0], color="C0", lw=1.0, label=once("fit", "fitted feature (exagg.)"))
     meas = np.asarray(ff.nominal_points) + fac * np.asarray(ff.error_vectors)
@@ -116,13 +115,13 @@ def profile_figure(res, exaggeration: float | None = None):
     fac = exaggeration or auto_exaggeration(res)
     t = np.linspace(0.0, 1.0, 80)
     fits = res.fit.fits
-    all_x = np.concatenate([np.asarray(f.point_at(t))[:, 0] for f in prof.features])
+    curves = [f.drawn_at(t) for f in prof.features]
+    all_x = np.concatenate([q[:, 0] for q, _ in curves])
     label_gap = 0.22 * max(float(np.ptp(all_x)), 1.0)
     unc = None if res.uncertainty is None else res.uncertainty["linearised"]
     once = _Once()
     for i, f in enumerate(prof.features):
-        q = np.asarray(f.point_at(t))
-        n = np.asarray(f.outward_normal(q))
+        q, n = curves[i]
         ax.plot(q[:, 1], q[:, 0], color="k", lw=1.4, label=once("nominal", "nominal profile"))
         lo, hi = (q + fac * v * n for v in f.tolerance)
         zone = np.vstack([lo, hi[::-1]])
@@ -140,7 +139,7 @@ def profile_figure(res, exaggeration: float | None = None):
     if unc is None and res.path is not None:
         v = prof.vertices + fac * (np.asarray(res.path.vertices) - prof.vertices)
         ax.plot(v[:, 1], v[:, 0], "-", color="C2", lw=1.6, label="adjusted tool path (exagg.)")
-    z_all = np.concatenate([np.asarray(f.point_at(t))[:, 1] for f in prof.features])
+    z_all = np.concatenate([q[:, 1] for q, _ in curves])
     ax.plot(
         [z_all.min(), z_all.max()], [0.0, 0.0], color="0.4", lw=0.8, ls="-.", label="spindle axis"
     )
@@ -179,7 +178,7 @@ def _part_panel(ax, res, lin, s, k):
         ax.plot([starts[i], starts[i + 1]], [hi, hi], color="C3", lw=1.2)
         ff = res.fit.fits.get(f.id)
         if ff is not None:
-            d = np.asarray(normal_deviation_at(f, ff.values, lin.grid.points[sel]))
+            d = -f.drawn_distance(lin.grid.points[sel], ff.values)
             ax.plot(s[sel], 1e3 * k[i] * d, color="C0", lw=1.3,
                     label="fitted deviation of the part" if lab else None)  # fmt: skip
         if f.id in dec and est.get(f.id) is not None:
