@@ -35,7 +35,7 @@ def feature_polyline(f: Feature) -> np.ndarray:
     sweep = f.length / f.radius
     step = 2.0 * math.acos(max(1.0 - CHORD_ERROR_MM / f.radius, -1.0))
     m = max(8, int(math.ceil(sweep / max(step, 1e-6))) + 1)
-    return np.asarray(f.point_at(np.linspace(0.0, 1.0, m)), dtype=float)
+    return f.drawn_at(np.linspace(0.0, 1.0, m))[0]
 
 
 def ball_centres(f: Feature, t, ball_radius: float):
@@ -58,8 +58,7 @@ def ball_centres(f: Feature, t, ball_radius: float):
 @functools.lru_cache(maxsize=1024)
 def _line_normal(f) -> np.ndarray:
     """A line's outward normal, from its own model (once per line)."""
-    mid = 0.5 * (np.asarray(f.p0, dtype=float) + np.asarray(f.p1, dtype=float))
-    n = np.asarray(f.outward_normal(mid[None]), dtype=float)[0]
+    n = np.array(f.drawn_at(0.5)[1])
     n.flags.writeable = False
     return n
 

@@ -67,9 +67,8 @@ def normal_deviation_at(feature, dev, q):
 @functools.lru_cache(maxsize=4096)
 def nominal_points(feature, ts: tuple[float, ...]):
     """Nominal points, outward normals and model geometry of `feature` at `ts` (cached)."""
-    q = np.asarray(feature.point_at(jnp.asarray(ts, dtype=float)))
-    n = np.asarray(feature.outward_normal(jnp.asarray(q)))
-    return q, n, geometry_args(feature)
+    q, n = feature.drawn_at(np.asarray(ts, dtype=float))  # NumPy: no eager JAX per shape
+    return q, np.array(n), geometry_args(feature)
 
 
 def _delta(kind):

@@ -64,11 +64,11 @@ def path_grid(profile: Profile, per_feature: int = 21) -> PathGrid:
     fi, ts, pts, nrm = [], [], [], []
     for i, f in enumerate(profile.features):
         t = np.linspace(0.0, 1.0, per_feature)
-        p = np.asarray(f.point_at(t))
+        p, n = f.drawn_at(t)  # in NumPy: no eager JAX programs compiled per shape
         fi.append(np.full(per_feature, i))
         ts.append(t)
         pts.append(p)
-        nrm.append(np.asarray(f.outward_normal(p)))
+        nrm.append(n)
     return PathGrid(np.concatenate(fi), np.concatenate(ts), np.vstack(pts), np.vstack(nrm))
 
 
