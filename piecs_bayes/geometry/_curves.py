@@ -125,8 +125,9 @@ class Line:
 
     def drawn_at(self, t):
         """``(points, outward normals)`` of the nominal line at fractions ``t``, in
-        NumPy: what a figure draws, without the dozen JAX operations that `point_at`
-        and `outward_normal` dispatch one by one (0.3 s of a report's profile figure)."""
+        NumPy: nominal geometry read outside a trace (figures, the tool-path grid,
+        clearance), without the dozen JAX operations that `point_at` and
+        `outward_normal` dispatch one by one, each compiled for every new shape."""
         t = np.asarray(t, dtype=float)[..., None]
         p0, p1 = np.asarray(self.p0, dtype=float), np.asarray(self.p1, dtype=float)
         q = p0 + t * (p1 - p0)
