@@ -15,15 +15,110 @@ that the default 1 s (or 0.2 s) threshold left out, ~2 s of a warm run.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
+import importlib.machinery
+import importlib.metadata
+import importlib.util
 import json
 import os
+import sys
 import threading
 import time
 from pathlib import Path
 
-import jax
+# ------------------------------------------------------------------ import costs
+# Two costs every computing process paid for work it never asks for (jax 0.10.2):
+# - `import jax` looks for a ROCm plugin by parsing the metadata of every installed
+#   distribution (0.13 s of the 158 of this environment; jax-ml/jax#37879). The scan
+#   gets only the distributions whose name, read from their folder, can be one
+#   (`_rocm_scan_narrowed`); jax's loop takes nothing else.
+# - the first call of a `jax.export`ed program (the kept traces) initialises jaxlib's
+#   LAPACK handlers, which imports the two Cython modules of SciPy's BLAS and LAPACK
+#   function tables and so the whole of scipy.linalg (0.14 s). `load_lapack_tables`
+#   initialises them first from those two modules loaded alone (12 ms).
+# Both fall back to what jax does itself wherever they do not apply.
+
+_ROCM_SCAN_MODULE = "jax._src.numpy.array_constructors"
+
+
+def _may_be_rocm_plugin(dist) -> bool:
+    """Whether `dist` can be a `jax-rocm*-plugin`, judged from its folder's name where
+    the distribution gives it without reading its metadata (else True: read it)."""
+    name = getattr(dist, "_normalized_name", None)
+    return not isinstance(name, str) or name.startswith("jax_rocm")
+
+
+@contextlib.contextmanager
+def _rocm_scan_narrowed():
+    """`importlib.metadata.distributions()`, while jax is imported, lists only the
+    distributions that can be a ROCm plugin to jax's scan, everything to any other caller."""
+    everything = importlib.metadata.distributions
+
+    def distributions(**kwargs):
+        found = everything(**kwargs)
+        if sys._getframe(1).f_globals.get("__name__") != _ROCM_SCAN_MODULE:
+            return found
+        return (d for d in found if _may_be_rocm_plugin(d))
+
+    importlib.metadata.distributions = distributions
+    try:
+        yield
+    finally:
+        importlib.metadata.distributions = everything
+
+
+def load_lapack_tables() -> None:
+    """Initialise jaxlib's LAPACK handlers from `scipy.linalg.cython_blas` and
+    `cython_lapack` loaded alone, without scipy.linalg's own imports; once a process.
+
+    The two modules are then taken out of `sys.modules` where importing them again
+    gives the same module objects (single-phase extension modules, as SciPy builds
+    them), so that a later `import scipy.linalg` sets them up as its own. Where they
+    cannot be found or loaded alone, nothing is done: jaxlib imports them itself."""
+    global _lapack_ready
+    if _lapack_ready or "scipy.linalg.cython_lapack" in sys.modules:
+        return
+    _lapack_ready = True
+    loaded: dict = {}
+    try:
+        import scipy
+
+        folder = Path(scipy.__file__).parent / "linalg"
+        for name in ("cython_blas", "cython_lapack"):
+            full = f"scipy.linalg.{name}"
+            if full in sys.modules:
+                continue
+            path = next(
+                p
+                for suffix in importlib.machinery.EXTENSION_SUFFIXES
+                if (p := folder / f"{name}{suffix}").is_file()
+            )
+            loader = importlib.machinery.ExtensionFileLoader(full, str(path))
+            spec = importlib.util.spec_from_file_location(full, path, loader=loader)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[full] = module
+            loaded[full] = (loader, spec, module)
+            loader.exec_module(module)
+        from jax._src.lax.linalg import initialize_lapack
+
+        initialize_lapack()
+    except Exception:  # noqa: BLE001 - not found or not loadable alone: jaxlib imports them
+        pass
+    for full, (loader, spec, module) in loaded.items():
+        if loader.create_module(spec) is module:  # imported again, the same object
+            del sys.modules[full]
+
+
+_lapack_ready = False
+
+
+if "jax" in sys.modules:
+    import jax
+else:
+    with _rocm_scan_narrowed():
+        import jax
 
 jax.config.update("jax_enable_x64", True)
 
@@ -142,6 +237,7 @@ def persisted(name: str, key, build, packages: tuple[str, ...] = ()) -> tuple:
     """
     from jax import export
 
+    load_lapack_tables()  # before an export or a call is lowered: they initialise LAPACK
     path = _export_path(name, key, packages)
     if path is not None and path.is_file():
         try:

@@ -96,3 +96,54 @@ def test_a_lazy_module_imports_once_and_keeps_what_was_read():
     assert lazy.dumps is json.dumps and vars(lazy)["dumps"] is json.dumps
     with pytest.raises(AttributeError):
         _ = lazy.no_such_name
+
+
+def test_jax_still_finds_a_rocm_plugin_and_other_callers_see_every_distribution(tmp_path):
+    """The ROCm plugin scan at `import jax` is narrowed to the distributions that can be
+    one (`_config._rocm_scan_narrowed`): a `jax-rocm7-plugin` on the path is still
+    found and loaded as jax would; any other caller, then and after, lists them all."""
+    site = tmp_path / "site"
+    info = site / "jax_rocm7_plugin-0.1.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: jax-rocm7-plugin\nVersion: 0.1\n")
+    (site / "jax_rocm7_plugin").mkdir()
+    (site / "jax_rocm7_plugin" / "__init__.py").write_text("")
+    (site / "jax_rocm7_plugin" / "rocm_plugin_extension.py").write_text("FOUND = True\n")
+    code = (
+        "import importlib.metadata as md\n"
+        "before = md.distributions\n"
+        "from piecs_bayes import _config\n"
+        "from jax._src.numpy import array_constructors as ac\n"
+        "assert md.distributions is before\n"
+        "assert getattr(ac.rocm_plugin_extension, 'FOUND', False)\n"
+        "with _config._rocm_scan_narrowed():\n"
+        "    inside = sorted(d.metadata['Name'] for d in md.distributions())\n"
+        "outside = sorted(d.metadata['Name'] for d in md.distributions())\n"
+        "assert inside == outside and 'jax-rocm7-plugin' in outside and len(outside) > 10\n"
+    )
+    out = _python(code, PYTHONPATH=str(site))
+    assert out.returncode == 0, out.stderr
+
+
+def test_a_kept_trace_runs_lapack_without_importing_scipy_linalg(tmp_path):
+    """A kept trace's call initialises jaxlib's LAPACK handlers from SciPy's two Cython
+    tables loaded alone (`_config.load_lapack_tables`), not from the whole of
+    scipy.linalg; the SVD it runs is LAPACK's, and scipy.linalg imported afterwards is
+    whole (its Cython tables the same modules)."""
+    code = (
+        "import sys\n"
+        "import numpy as np\n"
+        "import jax, jax.numpy as jnp\n"
+        "from piecs_bayes import _config\n"
+        "svd = _config.KeptTrace('svd_check', 'v1', jax.jit(lambda a: jnp.linalg.svd(a, compute_uv=False)))\n"
+        "a = np.random.default_rng(1).normal(size=(7, 3))\n"
+        "got = np.asarray(svd(a))\n"
+        "assert 'scipy.linalg' not in sys.modules, 'scipy.linalg imported'\n"
+        "np.testing.assert_allclose(got, np.linalg.svd(a, compute_uv=False), rtol=1e-13)\n"
+        "import scipy.linalg\n"
+        "assert scipy.linalg.cython_lapack is sys.modules['scipy.linalg.cython_lapack']\n"
+        "np.testing.assert_allclose(scipy.linalg.svd(a, compute_uv=False), got, rtol=1e-13)\n"
+    )
+    for run in ("traced and kept", "read back"):
+        out = _python(code, XDG_CACHE_HOME=str(tmp_path))
+        assert out.returncode == 0, f"{run}: {out.stderr}"

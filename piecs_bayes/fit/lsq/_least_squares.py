@@ -201,9 +201,11 @@ def ravel(tree):
 @functools.lru_cache(maxsize=8)
 def flat_structure(p: int):
     """Names and `unravel` of `p` flat parameters (as `least_squares` makes them from
-    its start `jnp.zeros(p)`), made once: building them takes eager JAX operations."""
+    its start `jnp.zeros(p)`), made once, without JAX operations: `ravel`'s would
+    compile two small programs in every process."""
     y0 = np.zeros(p)
-    return param_names(y0), ravel(y0)[1]
+    leaves, treedef = jax.tree_util.tree_flatten(y0)
+    return param_names(y0), _Unravel(treedef, tuple(tuple(np.shape(x)) for x in leaves))
 
 
 @dataclasses.dataclass(frozen=True)
