@@ -391,7 +391,7 @@ def feature_fractions(feature, points) -> np.ndarray:
     """The fractions of `feature` nearest to nominal points `(k, 2)` (part frame, mm,
     radius X): where probed points lie along it."""
     t = np.linspace(0.0, 1.0, 4001)
-    q = np.asarray(feature.point_at(t), dtype=float)
+    q = feature.drawn_at(t)[0]
     p = np.atleast_2d(np.asarray(points, dtype=float))
     d = np.sum((p[:, None, :] - q[None]) ** 2, axis=2)
     return t[np.argmin(d, axis=1)]
@@ -463,8 +463,7 @@ def _points(study, s, plans):
     for f, ts, inside, _ in plans:
         if len(ts) == 0:
             continue
-        q = np.asarray(f.point_at(np.asarray(ts, dtype=float)), dtype=float)
-        n = np.asarray(f.outward_normal(q), dtype=float)
+        q, n = f.drawn_at(np.asarray(ts, dtype=float))
         c = q + r * n
         start = c + out_dist * n
         target = c - s.overtravel * n
@@ -478,7 +477,9 @@ def _points(study, s, plans):
 
 
 def _pt(v) -> tuple[float, float]:
-    return (float(v[0]), float(v[1]))
+    """`v` as two floats, a negative zero as zero (`+ 0.0`): the sign of a zero
+    component depends on how the normal was computed, not on the part."""
+    return (float(v[0]) + 0.0, float(v[1]) + 0.0)
 
 
 def _check_probe_moves(study, s, raw) -> None:
