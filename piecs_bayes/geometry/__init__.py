@@ -18,7 +18,6 @@ from ._curves import Feature as Feature
 from ._curves import Line as Line
 from ._curves import left_normal as left_normal
 from ._curves import rotate as rotate
-from ._curves import surface_points as surface_points
 from ._drawn import TOLERANCE_ON as TOLERANCE_ON
 from ._drawn import drawn_limits as drawn_limits
 from ._drawn import drawn_scale as drawn_scale

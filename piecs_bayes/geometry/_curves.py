@@ -16,12 +16,10 @@ material (along the outward normal). ``tolerance`` limits the normal deviation (
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from typing import ClassVar
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -123,16 +121,28 @@ class Line:
     def zero(self):
         return jnp.zeros(self.nparams)
 
-    def drawn_at(self, t):
-        """``(points, outward normals)`` of the nominal line at fractions ``t``, in
-        NumPy: nominal geometry read outside a trace (figures, the tool-path grid,
-        clearance), without the dozen JAX operations that `point_at` and
-        `outward_normal` dispatch one by one, each compiled for every new shape."""
+    def drawn_at(self, t, dev=None):
+        """``(points, outward normals)`` at fractions ``t``, in NumPy: of the nominal
+        line, or with ``dev`` (``(p,)``, or ``(..., p)`` for several deviations: results
+        ``(..., k, 2)``) what ``point_at(t, dev)`` and its ``outward_normal`` give.
+        Geometry read outside a trace (figures, the tool-path grid, clearance, the
+        probe plan, simulated probing), without the dozen JAX operations that
+        `point_at` and `outward_normal` dispatch one by one, each compiled for
+        every new shape."""
         t = np.asarray(t, dtype=float)[..., None]
         p0, p1 = np.asarray(self.p0, dtype=float), np.asarray(self.p1, dtype=float)
         q = p0 + t * (p1 - p0)
         d = (p1 - p0) / math.dist(self.p0, self.p1)
-        return q, np.broadcast_to(self.side * np.array([d[1], -d[0]]), q.shape)
+        n = self.side * np.array([d[1], -d[0]])
+        if dev is None:
+            return q, np.broadcast_to(n, q.shape)
+        dev = np.asarray(dev, dtype=float)
+        e, theta = dev[..., 0, None, None], dev[..., 1, None, None]
+        c, s = np.cos(theta), np.sin(theta)
+        n_dev = np.concatenate([c * n[0] + s * n[1], -s * n[0] + c * n[1]], axis=-1)
+        dist = np.sum((q - ((p0 + p1) / 2 + e * n)) * n_dev, axis=-1, keepdims=True)
+        q_dev = q - dist * n_dev
+        return q_dev, np.broadcast_to(n_dev, q_dev.shape)
 
     def drawn_distance(self, p, dev):
         """`signed_distance` of points `p` from the line deviated by `dev`, in NumPy
@@ -253,13 +263,20 @@ class Arc:
     def zero(self):
         return jnp.zeros(self.nparams)
 
-    def drawn_at(self, t):
-        """``(points, outward normals)`` of the nominal arc at fractions ``t`` of its
-        sweep, in NumPy (as `Line.drawn_at`)."""
+    def drawn_at(self, t, dev=None):
+        """``(points, outward normals)`` at fractions ``t`` of the nominal sweep, in
+        NumPy, of the nominal arc or the arc deviated by ``dev`` (as `Line.drawn_at`)."""
         a0, sweep = self._angles()
         ang = a0 + np.asarray(t, dtype=float) * sweep
         u = np.stack([np.sin(ang), np.cos(ang)], axis=-1)
-        return np.asarray(self.center, dtype=float) + self.radius * u, self.sense * u
+        centre = np.asarray(self.center, dtype=float)
+        if dev is None:
+            return centre + self.radius * u, self.sense * u
+        dev = np.asarray(dev, dtype=float)
+        c = centre + dev[..., None, :2]
+        q = c + (self.radius + dev[..., 2, None, None]) * u
+        v = q - c
+        return q, self.sense * v / np.sqrt(np.sum(v * v, axis=-1, keepdims=True))
 
     def drawn_distance(self, p, dev):
         """`signed_distance` of points `p` from the arc deviated by `dev`, in NumPy
@@ -270,18 +287,3 @@ class Arc:
 
 
 Feature = Line | Arc
-
-
-@functools.lru_cache(maxsize=512)
-def surface_points(feature: Feature):
-    """`(t, dev) -> (points, outward normals)` of `feature` deviated by `dev` at the
-    fractions `t` of its nominal length, jitted: one compiled program per feature and
-    count of fractions (features are frozen values: equal ones share it), where the
-    two eager calls dispatch ~20 small operations each (simulated probing of many
-    parts of one profile)."""
-
-    def contact(t, dev):
-        q = feature.point_at(t, dev)
-        return q, feature.outward_normal(q, dev)
-
-    return jax.jit(contact)

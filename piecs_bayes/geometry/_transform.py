@@ -36,6 +36,10 @@ class MachineTransform:
     def as_array(self):
         return jnp.array([self.x_centre, self.z_offset, self.scale_x, self.scale_z, self.rotation])
 
+    def as_numpy(self) -> np.ndarray:
+        """The 5-vector of `as_array` as a NumPy array (no JAX operation)."""
+        return np.array([self.x_centre, self.z_offset, self.scale_x, self.scale_z, self.rotation])
+
 
 def machine_to_part(points, params):
     """Map machine ``(x, z)`` points to the part frame.
@@ -66,9 +70,25 @@ def _machine_to_part(points, t):
 
 
 def part_to_machine(points, params):
-    """Exact inverse of :func:`machine_to_part`."""
-    t = params.as_array() if isinstance(params, MachineTransform) else params
-    return _part_to_machine(points, t)
+    """Exact inverse of :func:`machine_to_part`. Concrete NumPy points and a
+    `MachineTransform` or NumPy parameters (``(..., 5)``, one transform per leading
+    index of ``points``: ``(..., n, 2)``) are mapped in NumPy, to a NumPy array."""
+    if isinstance(params, MachineTransform):
+        params = params.as_numpy()
+    if isinstance(points, np.ndarray) and isinstance(params, np.ndarray):
+        return _part_to_machine_np(points.astype(float), params.astype(float))
+    return _part_to_machine(points, params)
+
+
+def _part_to_machine_np(pts: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """`part_to_machine` of concrete points in NumPy (no JAX dispatch: simulated probing)."""
+    t = t[..., None, :] if t.ndim > 1 else t
+    c, s = np.cos(-t[..., 4]), np.sin(-t[..., 4])
+    x, z = pts[..., 0], pts[..., 1]
+    u = np.stack([c * x + s * z, -s * x + c * z], axis=-1)
+    return u / np.stack([1.0 + t[..., 2], 1.0 + t[..., 3]], axis=-1) + np.stack(
+        [t[..., 0], t[..., 1]], axis=-1
+    )
 
 
 @jax.jit  # one compiled call, not ~10 eager operations (28 ms a call: simulated probing)

@@ -17,8 +17,6 @@ Process effects (all in mm, radius X):
 
 from __future__ import annotations
 
-import collections
-import functools
 import json
 import math
 import numbers
@@ -36,7 +34,6 @@ from ..geometry import (
     make_feature,
     part_to_machine,
     profile_side,
-    surface_points,
 )
 from ..io import lobe_basis
 from ._files import probe_csv_text, study_toml_text
@@ -128,35 +125,6 @@ def process_deviations(profile: Profile, errors: ProcessErrors) -> dict[str, np.
     return out
 
 
-#: how often each feature has been probed in this process (`_contact`); forgotten
-#: past this many features (a long process of many programs)
-_PROBED: collections.Counter = collections.Counter()
-_PROBED_MAX = 4096
-
-
-def _contact(feature, t, dev) -> tuple[np.ndarray, np.ndarray]:
-    """Contact points and outward normals of `feature` deviated by `dev` at the
-    fractions `t`: eagerly the first time a feature is probed (a program's features
-    are often probed once: compiling each would cost more), through its compiled
-    program (`surface_points`) once it is probed again (a run's parts: ~20 eager
-    operations per feature and part were most of simulating one)."""
-    if len(_PROBED) >= _PROBED_MAX:
-        _PROBED.clear()
-    _PROBED[feature] += 1
-    if _PROBED[feature] == 1:
-        s = np.asarray(feature.point_at(t, dev))
-        return s, np.asarray(feature.outward_normal(s, dev))
-    return tuple(map(np.array, surface_points(feature)(t, dev)))
-
-
-@functools.lru_cache(maxsize=256)
-def _contacts(feature):
-    """`surface_points` of many parts at once (deviations `(P, k)`, the same fractions)."""
-    import jax
-
-    return jax.jit(jax.vmap(surface_points(feature), in_axes=(None, 0)))
-
-
 def simulate_probe(
     profile: Profile,
     deviations: dict[str, np.ndarray],
@@ -192,7 +160,8 @@ def simulate_probe(
         if k <= 0:
             continue
         dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
-        s, n = _contact(f, t, dev)
+        s, n = f.drawn_at(t, dev)  # NumPy: no JAX program per feature and count
+        s = s.copy()
         c = s + ball_radius * n + rng.normal(0.0, noise_sd, size=s.shape)
         for feat, idx, size in outliers:
             if feat == f.id and 0 <= idx < k:
@@ -279,9 +248,6 @@ def simulate_parts(
     **Returns:** `dict(part (str ids), feature, points (machine, radius X), errors
     {source: (n_parts,)})`, points part by part, features in profile order.
     """
-    import jax
-    import jax.numpy as jnp
-
     ball_radius, transform, points = probing.ball_radius, probing.transform, probing.points
     noise_sd, margin = probing.noise_sd, probing.margin
     rng = np.random.default_rng(rng)
@@ -304,7 +270,7 @@ def simulate_parts(
             continue
         dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
         dev = np.broadcast_to(dev, (n_parts, f.nparams))
-        q, nrm = map(np.asarray, _contacts(f)(t, np.ascontiguousarray(dev)))
+        q, nrm = f.drawn_at(t, dev)  # (P, k, 2) each
         r = np.broadcast_to(rb[:, None], q.shape[:2])
         if probe is not None:  # the radius at each approach angle (the inward normal)
             basis = lobe_basis(np.arctan2(-nrm[..., 1], -nrm[..., 0]).ravel(), probe.orders)
@@ -312,12 +278,12 @@ def simulate_parts(
         cents.append(q + r[..., None] * nrm + rng.normal(0.0, noise_sd, size=q.shape))
         feats += [f.id] * k
     part_pts = np.concatenate(cents, axis=1)  # (P, n, 2), part frame
-    base = np.asarray(transform.as_array())
+    base = transform.as_numpy()
     tr = np.tile(base, (n_parts, 1))
     for j, name in enumerate(("x_centre", "z_offset", "scale_x", "scale_z")):
         if name in errors:
             tr[:, j] += errors[name]
-    machine = np.asarray(jax.jit(jax.vmap(part_to_machine))(jnp.asarray(part_pts), tr))
+    machine = part_to_machine(part_pts, tr)  # NumPy, one transform per part
     n = part_pts.shape[1]
     width = len(str(n_parts))
     names = np.array([f"p{i:0{width}d}" for i in range(n_parts)])

@@ -79,6 +79,20 @@ def test_drawn_points_and_normals_are_the_models(feature):
     assert isinstance(d, np.ndarray) and d.shape == (17,)
     want = feature.signed_distance(jnp.asarray(near), jnp.asarray(dev))
     np.testing.assert_allclose(d, want, rtol=0, atol=1e-12)
+    # and the deviated feature's points and normals, as `point_at(t, dev)` gives them,
+    # for one deviation and for a batch of them (leading axes)
+    q_dev, n_dev = feature.drawn_at(t, dev)
+    np.testing.assert_allclose(q_dev, feature.point_at(jnp.asarray(t), dev), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        n_dev, feature.outward_normal(jnp.asarray(q_dev), dev), rtol=0, atol=1e-12
+    )
+    devs = np.stack([dev, -dev, np.zeros_like(dev)])
+    q_many, n_many = feature.drawn_at(t, devs)
+    assert q_many.shape == n_many.shape == (3, 17, 2)
+    for j, d in enumerate(devs):
+        np.testing.assert_allclose(q_many[j], feature.point_at(jnp.asarray(t), d), atol=1e-12)
+        np.testing.assert_allclose(n_many[j], feature.drawn_at(t, d)[1], rtol=0, atol=0)
+    np.testing.assert_allclose(q_many[2], q, rtol=0, atol=1e-12)
 
 
 def test_line_deviation_parameters_mean_what_they_say():
@@ -158,6 +172,15 @@ def test_machine_part_transform_and_inverse():
     assert np.allclose(plain, pts - jnp.array([1.0, -300.0]), atol=1e-14)
     scaled = machine_to_part(jnp.array([[10.0, 0.0]]), MachineTransform(scale_x=1e-5))
     assert float(scaled[0, 0]) == pytest.approx(10.0001, abs=1e-12)
+    # concrete NumPy points map in NumPy, one transform or one per leading index
+    part = np.asarray(machine_to_part(pts, t))
+    np.testing.assert_allclose(part_to_machine(part, t), pts, rtol=0, atol=1e-12)
+    assert isinstance(part_to_machine(part, t), np.ndarray)
+    ts = np.stack([t.as_numpy(), np.zeros(5), np.array([1.0, -300.0, 1e-5, 2e-5, -3e-5])])
+    many = part_to_machine(np.stack([part] * 3), ts)
+    assert many.shape == (3, 3, 2)
+    for j in range(3):
+        np.testing.assert_allclose(many[j], part_to_machine(jnp.asarray(part), ts[j]), atol=1e-12)
 
 
 def test_ball_correction_lands_on_the_surface():

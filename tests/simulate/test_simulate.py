@@ -117,29 +117,30 @@ def test_simulated_probing_defaults_and_refusal():
         SimulatedProbing(ball_radius=1.0, noise_sd=-0.001)
 
 
-def test_a_features_first_and_later_probes_agree_with_the_closed_form():
-    """`_contact`: a feature's first probe runs eagerly, later ones through its compiled
-    program (`geometry.surface_points`); both put the points on the deviated feature
-    (closed form) with its outward normals, and agree to rounding."""
+def test_simulated_contacts_are_on_the_deviated_feature_in_closed_form():
+    """Simulated probing puts its contacts where `drawn_at(t, dev)` says (NumPy, one
+    part or many at once): on the deviated feature (closed form) with its outward
+    normals; the batch of parts is each part's own."""
     from piecs_bayes.geometry import Arc, Line
-    from piecs_bayes.simulate._parts import _contact
 
     t = np.linspace(0.1, 0.9, 7)
     line = Line(id="first_probe_line", p0=(11.25, -3.5), p1=(13.75, -27.0))
     dev = np.array([0.004, 2e-4])  # offset (mm), rotation (rad)
-    first, later = _contact(line, t, dev), _contact(line, t, dev)
-    for s, n in (first, later):
-        point, _, normal = (np.asarray(a) for a in line.actual(dev))
-        np.testing.assert_allclose((s - point) @ normal, 0.0, atol=1e-13)
-        np.testing.assert_allclose(n, np.broadcast_to(normal, n.shape), atol=1e-15)
+    s, n = line.drawn_at(t, dev)
+    point, _, normal = (np.asarray(a) for a in line.actual(dev))
+    np.testing.assert_allclose((s - point) @ normal, 0.0, atol=1e-13)
+    np.testing.assert_allclose(n, np.broadcast_to(normal, n.shape), atol=1e-15)
     arc = Arc(id="first_probe_arc", p0=(20.0, -40.0), p1=(17.0, -43.0), center=(17.0, -40.0),
               ccw=False)  # fmt: skip
     dev = np.array([0.003, -0.002, 0.005])  # centre x, z, radius (mm)
-    first, later = _contact(arc, t, dev), _contact(arc, t, dev)
+    s, n = arc.drawn_at(t, dev)
     centre, radius = np.array(arc.center) + dev[:2], arc.radius + dev[2]
-    for s, n in (first, later):
-        v = s - centre
-        np.testing.assert_allclose(np.hypot(v[:, 0], v[:, 1]), radius, rtol=0, atol=1e-13)
-        np.testing.assert_allclose(n, arc.sense * v / radius, atol=1e-12)
-    for a, b in zip(first, later, strict=True):
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
+    v = s - centre
+    np.testing.assert_allclose(np.hypot(v[:, 0], v[:, 1]), radius, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(n, arc.sense * v / radius, atol=1e-12)
+    devs = np.array([[0.003, -0.002, 0.005], [-0.01, 0.0, 0.02], [0.0, 0.0, 0.0]])
+    many = arc.drawn_at(t, devs)
+    assert many[0].shape == many[1].shape == (3, 7, 2)
+    for j, d in enumerate(devs):
+        for a, b in zip(many, arc.drawn_at(t, d), strict=True):
+            np.testing.assert_array_equal(a[j], b)
