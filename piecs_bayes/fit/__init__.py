@@ -13,6 +13,7 @@ from ._features import feature_residuals as feature_residuals
 from ._features import fit_feature as fit_feature
 from ._features import geometry_args as geometry_args
 from ._features import line_distance as line_distance
+from ._features import padded_size as padded_size
 from ._features import to_part_frame as to_part_frame
 from ._joint import TRANSFORM_PARAMS as TRANSFORM_PARAMS
 from ._joint import fit_profile_joint as fit_profile_joint

@@ -112,8 +112,10 @@ def dispatch(solve, rows, data, bsize, st: Settings):
     point order, the points, the geometry table and the group's bucket."""
     take = np.concatenate([rows, np.repeat(rows[:1], bsize - rows.size)])
     pts, geom, w = _problems(take, data)
-    geom = tuple(jnp.asarray(leaf) for leaf in geom)
-    args = (jnp.asarray(pts), geom, st.ball_radius, jnp.asarray(w), st.scale, st.sigma)
+    # NumPy into the jitted solve (it transfers them): an eager jnp.asarray compiles a
+    # program per shape
+    geom = tuple(np.asarray(leaf) for leaf in geom)
+    args = (np.asarray(pts), geom, st.ball_radius, np.asarray(w), st.scale, st.sigma)
     run, layouts = _packed(solve)
     packed = run(*args)
     return packed, _unpacker(solve, layouts, _hashable(jax.tree_util.tree_map(jnp.shape, args)))

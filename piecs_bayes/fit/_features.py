@@ -21,7 +21,6 @@ import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -89,12 +88,23 @@ def feature_residuals(kind: str, free: tuple[int, ...]):
     return fn
 
 
-@functools.partial(jax.jit, static_argnums=0)
 def surface_and_nominal(feature: Feature, centres, values, ball_radius):
-    """Measured surface points (ball-corrected with the fitted normal) and their
-    nearest nominal points; jitted per feature (eager JAX calls cost ~ms each)."""
-    surface = centres - ball_radius * feature.outward_normal(centres, values)
-    return surface, feature.closest_point(surface)
+    """Measured surface points (ball-corrected along the fitted feature's outward
+    normal) and their nearest nominal points, `(n, 2)` each: what
+    `feature.outward_normal(centres, values)` and `feature.closest_point` give, in
+    NumPy (closed forms: a JAX program compiled per feature and count cost more)."""
+    p = np.asarray(centres, dtype=float)
+    values = np.asarray(values, dtype=float)
+    if feature.kind == "line":
+        (mid,), (normal,) = feature.drawn_at(np.array([0.5]))
+        fitted = feature.drawn_at(np.array([0.5]), values)[1][0]
+        surface = p - ball_radius * fitted
+        return surface, surface - ((surface - mid) @ normal)[:, None] * normal
+    centre = np.asarray(feature.center, dtype=float)
+    v = p - (centre + values[:2])
+    surface = p - ball_radius * feature.sense * v / np.linalg.norm(v, axis=-1, keepdims=True)
+    u = surface - centre
+    return surface, centre + feature.radius * u / np.linalg.norm(u, axis=-1, keepdims=True)
 
 
 def padded_size(n: int) -> int:

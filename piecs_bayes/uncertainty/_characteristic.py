@@ -27,7 +27,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import AnalysisError, InputError
-from ..fit import CALIBRATION_SOURCE, arc_distance, effective_dof, geometry_args, line_distance
+from ..fit import (
+    CALIBRATION_SOURCE,
+    arc_distance,
+    effective_dof,
+    geometry_args,
+    line_distance,
+    padded_size,
+)
 from ..geometry import Line, drawn_scale
 
 #: the fixed characteristic points, as fractions of the nominal feature
@@ -97,10 +104,14 @@ def deviation_and_jacobian(feature, dev, ts):
     parameters `dev` (`(k,)` and `(k, p)`); with `dev` of shape `(P, p)` (several
     parts or posterior draws): `(P, k)` and `(P, k, p)`, one compiled `vmap`."""
     q, _, geom = nominal_points(feature, tuple(float(t) for t in np.atleast_1d(ts)))
-    dev = jnp.asarray(dev, dtype=float)
+    dev = np.asarray(dev, dtype=float)  # NumPy in: no eager transfer compiled per shape
     kernel = _many if dev.ndim == 2 else _one
-    val, jac = kernel(feature.kind, jnp.asarray(q), geom, dev)
-    return np.asarray(val), np.asarray(jac)
+    # the points padded to a bucket (the last repeated; every point is computed on
+    # its own): one compiled kernel per bucket, not per count of fractions
+    k = q.shape[0]
+    q_pad = np.concatenate([q, np.repeat(q[-1:], padded_size(k) - k, axis=0)])
+    val, jac = kernel(feature.kind, q_pad, geom, dev)
+    return np.asarray(val)[..., :k], np.asarray(jac)[..., :k, :]
 
 
 def normal_deviation_draws(feature, draws, t: float) -> np.ndarray:

@@ -443,8 +443,8 @@ def linearised_toolpath(
     grid = o.grid or path_grid(profile)
     names = tuple(source_sd)
     feats = profile.features
-    dev0 = jnp.concatenate(
-        [jnp.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float) for f in feats]
+    dev0 = np.concatenate(
+        [np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float) for f in feats]
     )
     d_dx = _deviation_sensitivities(
         profile, feature_ids, pts, names, dev0, ball_radius, transform, approach, inlier, radius
@@ -506,7 +506,8 @@ def _deviation_sensitivities(
     features stay 0); inputs are the point coordinates, then the sources `names`.
     With `inlier`, the residual rows of the other points are left out."""
     feats = profile.features
-    x0 = jnp.concatenate([jnp.asarray(pts.ravel()), jnp.zeros(len(names))])
+    # NumPy into the jitted Jacobians: an eager jnp.asarray compiles a program per shape
+    x0 = np.concatenate([np.asarray(pts, dtype=float).ravel(), np.zeros(len(names))])
     jac_fn = _residual_jacobians(
         profile,
         tuple(feature_ids.tolist()),
@@ -517,7 +518,7 @@ def _deviation_sensitivities(
         radius,
     )
     j_d, j_x = map(
-        np.asarray, jac_fn(dev0, x0, None if approach is None else jnp.asarray(approach))
+        np.asarray, jac_fn(dev0, x0, None if approach is None else np.asarray(approach, float))
     )
     index = [np.flatnonzero(feature_ids == f.id) for f in feats]
     if inlier is not None:  # residual rows come feature by feature, in profile order

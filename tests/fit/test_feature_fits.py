@@ -6,7 +6,7 @@ import pytest
 from piecs_bayes.errors import InputError
 from piecs_bayes.fit import FitOptions, fit_feature, fit_profile, fit_profile_joint
 from piecs_bayes.fit.lsq import TUNING
-from piecs_bayes.geometry import MachineTransform
+from piecs_bayes.geometry import Arc, Line, MachineTransform
 from piecs_bayes.simulate import (
     DEMO_ERRORS,
     DEMO_POINTS,
@@ -156,3 +156,32 @@ def test_profile_fit_dataframes_are_its_csvs():
     assert len(res) == len(sim["points"]) and set(res["part"]) == {"p1"}
     with pytest.raises(ValueError, match="unknown table 'points'"):
         fit.to_dataframe("points")
+
+
+@pytest.mark.parametrize(
+    "feature",
+    [
+        Line("taper", (10.0, -2.0), (12.0, -30.0), side=-1),
+        Line("face", (0.0, 0.0), (-3.0, 4.0), side=1),
+        Arc("round", (20.0, -40.0), (17.0, -43.0), (17.0, -40.0), ccw=False),
+        Arc("fillet", (10.0, 5.0), (10.0, -5.0), (10.0, 0.0), ccw=False, side=-1),
+    ],
+    ids=lambda f: f.id,
+)
+def test_surface_and_nominal_points_are_the_models(feature):
+    """A fit's surface points (ball centres moved back along the fitted feature's
+    outward normal) and their nearest nominal points, in NumPy, are what the feature's
+    JAX methods give."""
+    import jax.numpy as jnp
+
+    from piecs_bayes.fit._features import surface_and_nominal
+
+    q, n = feature.drawn_at(np.linspace(0.1, 0.9, 9))
+    centres = q + 1.5 * n + np.random.default_rng(0).normal(0.0, 0.01, q.shape)
+    values = np.array([0.01, -0.002, 0.004][: feature.nparams])
+    surface, nominal = surface_and_nominal(feature, centres, values, 1.5)
+    want = centres - 1.5 * np.asarray(feature.outward_normal(jnp.asarray(centres), values))
+    np.testing.assert_allclose(surface, want, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        nominal, feature.closest_point(jnp.asarray(want)), rtol=0, atol=1e-12
+    )

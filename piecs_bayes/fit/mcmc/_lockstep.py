@@ -62,7 +62,7 @@ def _evaluate(vec, q, args, n_parts, n_ens):
     """Log posterior of proposals `q` `(P*K, m, d)` -> `(P*K, m)`, NaN -> -inf."""
     e, m, d = q.shape
     flat = q.reshape(n_parts, n_ens * m, d)
-    lp = np.asarray(vec(jnp.asarray(flat), args), dtype=float).reshape(e, m)
+    lp = np.asarray(vec(flat, args), dtype=float).reshape(e, m)  # NumPy in: no eager transfer
     return np.where(np.isnan(lp), -np.inf, lp)
 
 
