@@ -76,11 +76,20 @@ def load_lapack_tables() -> None:
     The two modules are then taken out of `sys.modules` where importing them again
     gives the same module objects (single-phase extension modules, as SciPy builds
     them), so that a later `import scipy.linalg` sets them up as its own. Where they
-    cannot be found or loaded alone, nothing is done: jaxlib imports them itself."""
+    cannot be found or loaded alone, nothing is done: jaxlib imports them itself.
+    A module enters `sys.modules` only once made (another thread's import never sees
+    it half made); concurrent callers wait for the first."""
     global _lapack_ready
-    if _lapack_ready or "scipy.linalg.cython_lapack" in sys.modules:
+    if _lapack_ready:
         return
-    _lapack_ready = True
+    with _lapack_lock:
+        if not _lapack_ready and "scipy.linalg.cython_lapack" not in sys.modules:
+            _load_lapack_tables()
+        _lapack_ready = True
+
+
+def _load_lapack_tables() -> None:
+    """The loading and initialisation of `load_lapack_tables` (under its lock)."""
     loaded: dict = {}
     try:
         import scipy
@@ -98,9 +107,9 @@ def load_lapack_tables() -> None:
             loader = importlib.machinery.ExtensionFileLoader(full, str(path))
             spec = importlib.util.spec_from_file_location(full, path, loader=loader)
             module = importlib.util.module_from_spec(spec)
-            sys.modules[full] = module
-            loaded[full] = (loader, spec, module)
             loader.exec_module(module)
+            sys.modules[full] = module  # cython_lapack, made next, imports cython_blas
+            loaded[full] = (loader, spec, module)
         from jax._src.lax.linalg import initialize_lapack
 
         initialize_lapack()
@@ -112,6 +121,7 @@ def load_lapack_tables() -> None:
 
 
 _lapack_ready = False
+_lapack_lock = threading.Lock()
 
 
 if "jax" in sys.modules:
