@@ -69,15 +69,44 @@ def propagate_linear(fn, x, cov):
     if x.ndim != 1:
         raise InputError(f"x: got shape {x.shape}, expected a vector (n,)")
     c = _check_cov(x, cov)
-    xj = jnp.asarray(x)
-    y = np.asarray(fn(xj))
-    jac = np.asarray(jax.jacfwd(fn)(xj)).reshape(y.size, x.size)
+    y, jac = map(np.asarray, _value_and_jacobian(fn)(x))
+    jac = jac.reshape(y.size, x.size)
     ycov = jac @ c @ jac.T
     return y, 0.5 * (ycov + ycov.T), jac
 
 
 # jitted vmapped versions of the functions seen, so repeated calls do not recompile
 _VMAPPED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+# jitted (value, Jacobian) of the functions seen (`propagate_linear`)
+_LINEARISED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _value_and_jacobian(fn):
+    """`x -> (fn(x), jacfwd(fn)(x))` jitted, once per function: one compiled program
+    per input shape, not one per JAX operation that `fn` and its derivative dispatch
+    eagerly (nor one per shape for moving `x` to the device)."""
+    try:
+        vj = _LINEARISED.get(fn)
+    except TypeError:  # not weak-referenceable: no caching
+        vj = None
+    if vj is None:
+        f = _weakly(fn)
+        vj = jax.jit(lambda x: (f(x), jax.jacfwd(f)(x)))
+        try:
+            _LINEARISED[fn] = vj
+        except TypeError:
+            pass
+    return vj
+
+
+def _weakly(fn):
+    """`fn`, called through a weak reference where it takes one: a cached program
+    that held `fn` itself would keep its own key alive in the weak caches."""
+    try:
+        ref = weakref.ref(fn)
+    except TypeError:
+        return fn
+    return lambda x: ref()(x)
 
 
 def _vectorise(fn, vectorized: bool, batch_size: int):
@@ -89,7 +118,7 @@ def _vectorise(fn, vectorized: bool, batch_size: int):
     except TypeError:  # not weak-referenceable: no caching
         vf = None
     if vf is None:
-        vf = jax.jit(jax.vmap(fn))
+        vf = jax.jit(jax.vmap(_weakly(fn)))
         try:
             _VMAPPED[fn] = vf
         except TypeError:

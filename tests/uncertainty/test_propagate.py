@@ -364,3 +364,45 @@ def test_budget_refuses_correlated_or_overlapping_sources():
         uncertainty_budget(jac, {"a": [0]})
     with pytest.raises(InputError, match="reserved"):
         uncertainty_budget(jac, {"total": [0]}, cov=np.eye(3))
+
+
+def test_a_function_is_compiled_once_and_not_kept_alive():
+    """`propagate_linear` and `propagate_mc` compile one program per function and
+    input shape (a second call compiles nothing), and their caches do not keep a
+    function alive once its caller lets it go."""
+    import gc
+    import weakref
+
+    from jax import monitoring
+
+    from piecs_bayes.uncertainty import _propagate
+
+    built = []
+
+    def count(event, *_, **__):
+        if event == "/jax/core/compile/backend_compile_duration":
+            built.append(event)
+
+    monitoring.register_event_duration_secs_listener(count)
+
+    def make(k):
+        return lambda x: jnp.sin(k * x) * x[::-1]
+
+    fn = make(1.7)
+    x, var = np.array([0.3, 0.5]), np.array([1e-4, 4e-4])
+    y, ycov, jac = propagate_linear(fn, x, var)
+    want = np.array([[1.7 * math.cos(0.51) * 0.5, math.sin(0.51)],
+                     [math.sin(0.85), 1.7 * math.cos(0.85) * 0.3]])  # fmt: skip
+    np.testing.assert_allclose(jac, want, rtol=1e-13)
+    np.testing.assert_allclose(ycov, want @ np.diag(var) @ want.T, rtol=1e-12)
+    propagate_mc(fn, np.random.default_rng(0).normal(x, 0.01, (500, 2)))
+    before = len(built)
+    propagate_linear(fn, x + 0.1, var)
+    propagate_mc(fn, np.random.default_rng(1).normal(x, 0.01, (500, 2)))
+    monitoring.unregister_event_duration_listener(count)
+    assert len(built) == before, built[before:]
+    gone = weakref.ref(fn)
+    del fn
+    gc.collect()
+    assert gone() is None
+    assert not any(k is None for k in _propagate._LINEARISED.keys())
