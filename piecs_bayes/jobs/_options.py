@@ -8,15 +8,18 @@ the same thing wherever it is used.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
-from ..compensate import OffsetSettings
-from ..decide import DecisionSettings, settings_from_spec
 from ..errors import InputError
 from ..fit import BAYES_SAMPLING, CALIBRATION_SOURCE, BayesOptions, FitOptions
 from ..fit.lsq import TUNING
 from ..fit.mcmc import SamplerOptions, prior_from_spec
 from ..io import Study, parse_fix
 from ._probe_radius import radius_components
+
+if TYPE_CHECKING:  # imported where read: `fit` needs neither (22 ms of its start)
+    from ..compensate import OffsetSettings
+    from ..decide import DecisionSettings
 
 
 def robust_scale(study: Study) -> float:
@@ -139,6 +142,8 @@ def source_sds(study: Study) -> dict:
 def decision_settings(study: Study) -> DecisionSettings:
     """[`DecisionSettings`][piecs_bayes.compensate.DecisionSettings] from the study's
     `[decision]` table; `max_correction` defaults to `compensation.max_correction`."""
+    from ..decide import settings_from_spec
+
     spec = {k: v for k, v in study.decision.items() if k not in ("characteristic", "run_index")}
     spec.setdefault("max_correction", study.compensation.max_correction)
     return settings_from_spec(spec, file=str(study.path))
@@ -146,6 +151,8 @@ def decision_settings(study: Study) -> DecisionSettings:
 
 def offset_settings(study: Study) -> OffsetSettings:
     """[`OffsetSettings`][piecs_bayes.compensate.OffsetSettings] from `[offsets]`."""
+    from ..compensate import OffsetSettings
+
     keys = ("null_band", "feedback_gain", "upper_limit", "k_significance", "decimals")
     spec = {k: study.offsets[k] for k in keys if k in study.offsets}
     try:
