@@ -161,7 +161,6 @@ def simulate_probe(
             continue
         dev = np.asarray(deviations.get(f.id, np.zeros(f.nparams)), dtype=float)
         s, n = f.drawn_at(t, dev)  # NumPy: no JAX program per feature and count
-        s = s.copy()
         c = s + ball_radius * n + rng.normal(0.0, noise_sd, size=s.shape)
         for feat, idx, size in outliers:
             if feat == f.id and 0 <= idx < k:
