@@ -155,10 +155,11 @@ def _model(
     measured = tuple(f.id for f in profile.features if np.any(feature_ids == f.id))
     priors = {name: prior_from_spec(name, dict(spec), file=file) for name, spec in sources.items()}
     lay = _layout(profile, measured, sources)
-    groups = [(f, sl, jnp.asarray(np.flatnonzero(feature_ids == f.id))) for f, sl in lay.features]
+    # indices as NumPy: constants of the traces (no program to convert them)
+    groups = [(f, sl, np.flatnonzero(feature_ids == f.id)) for f, sl in lay.features]
     base = transform.as_array()
     pairs = [(f, idx) for f, _, idx in groups]
-    order = jnp.asarray(np.concatenate([np.asarray(idx) for _, _, idx in groups]))
+    order = np.concatenate([idx for _, _, idx in groups])
 
     def log_prior(theta):
         lp = 0.0

@@ -17,6 +17,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
+from .. import _config
 from ..errors import InputError
 from ..io import PER_AXIS, CalibrationArtefact, approach_angle, coefficient_names
 
@@ -118,12 +119,11 @@ class CalibrationDesign:
 
     def args(self, terms) -> dict:
         """The arrays of the residual function for the model of `terms`."""
-        return {
-            "p": jnp.asarray(self.centres), "basis": jnp.asarray(term_basis(self.theta, terms)),
-            "c0": jnp.asarray(self.centre0), "E": jnp.asarray(self.embed),
-            "sphere": jnp.asarray(self.sphere), "s": jnp.asarray(self.sign),
-            "u": jnp.asarray(self.axis), "idx": jnp.asarray(self.size_index),
-        }  # fmt: skip
+        return _config.on_device({
+            "p": self.centres, "basis": term_basis(self.theta, terms), "c0": self.centre0,
+            "E": self.embed, "sphere": self.sphere, "s": self.sign, "u": self.axis,
+            "idx": self.size_index,
+        })  # fmt: skip
 
     def distinct(self) -> np.ndarray:
         """Indices of one point per distinct (direction, size) pair."""

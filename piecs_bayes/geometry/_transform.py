@@ -34,7 +34,12 @@ class MachineTransform:
     rotation: float = 0.0
 
     def as_array(self):
-        return jnp.array([self.x_centre, self.z_offset, self.scale_x, self.scale_z, self.rotation])
+        """The 5-vector `(x_centre, z_offset, scale_x, scale_z, rotation)` as a JAX array
+        (numbers are transferred: no program is compiled to build it)."""
+        values = (self.x_centre, self.z_offset, self.scale_x, self.scale_z, self.rotation)
+        if all(isinstance(v, int | float | np.number) for v in values):
+            return jax.device_put(np.array(values, dtype=float))
+        return jnp.array(values)
 
     def as_numpy(self) -> np.ndarray:
         """The 5-vector of `as_array` as a NumPy array (no JAX operation)."""

@@ -125,7 +125,8 @@ def _vectorise(fn, vectorized: bool, batch_size: int):
             pass
 
     def apply(s):
-        out = [np.asarray(vf(jnp.asarray(s[i : i + batch_size])))
+        s = np.asarray(s)  # sliced in NumPy and passed as NumPy: no program per slice
+        out = [np.asarray(vf(s[i : i + batch_size]))
                for i in range(0, s.shape[0], batch_size)]  # fmt: skip
         return np.concatenate(out, axis=0)
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import jax
 import numpy as np
 
 from piecs_bayes.fit import (
@@ -45,11 +46,13 @@ def _sim(n_parts=3, seed=5):
 
 
 def _model(ids, weighted=False):
-    return profile_log_posterior(
+    """The log posterior (jitted: one program, not one per operation), its layout, ..."""
+    log_prob, *rest = profile_log_posterior(
         PROFILE, ids, options=BayesOptions(sources=SOURCES, ball_radius=1.0,
                                            transform=MachineTransform(), sigma=0.0015),
         weighted=weighted,
     )  # fmt: skip
+    return (jax.jit(log_prob), *rest)
 
 
 def test_weighted_log_posterior_equals_the_inliers_alone():

@@ -13,6 +13,7 @@ import json
 import warnings
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -126,12 +127,14 @@ def test_pointwise_log_likelihood_is_the_model_likelihood_student_t(demo):
     m = _model(*key)
     theta = jnp.asarray(bayes.posterior.samples[7])
     args = (jnp.asarray(d.machine_points), None)
-    point = np.asarray(m.pointwise(theta, args))
+    point = np.asarray(jax.jit(m.pointwise)(theta, args))  # one program, not op by op
     lay = m.layout
     log_prior = sum(float(m.priors[n].log_pdf(theta[k])) for n, k in lay.nuisance)
     log_prior += float(m.priors["repeatability"].log_pdf(theta[lay.sigma_index]))
     assert point.shape == (len(d.feature_ids),) and np.all(np.isfinite(point))
-    assert point.sum() + log_prior == pytest.approx(float(m.log_prob(theta, args)), abs=1e-9)
+    assert point.sum() + log_prior == pytest.approx(
+        float(jax.jit(m.log_prob)(theta, args)), abs=1e-9
+    )
 
 
 def test_posterior_nc_gives_the_reported_rhat_and_ess(demo, tmp_path):

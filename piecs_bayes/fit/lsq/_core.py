@@ -95,33 +95,43 @@ def solve_arrays(
     An [`LsqArrays`][] of arrays; `status_code` holds a [`Status`][] value.
     """
     ids, cs = (None, None) if is_linear(loss) else stages(loss)
-    y0_flat = jnp.asarray(y0_flat, dtype=float)
+    y0_flat = _host(y0_flat)
     p = y0_flat.shape[0]
+    xp = jnp if isinstance(y0_flat, jax.core.Tracer) else np
     # None -> arrays (NaN = "not given"), so that every variant shares one compile
     if x_scale is None:
-        x_scale = jnp.ones(p)
+        x_scale = np.ones(p)
     elif isinstance(x_scale, str):
         if x_scale == "y0":
-            x_scale = jnp.where(y0_flat != 0, jnp.abs(y0_flat), 1.0)
+            x_scale = xp.where(y0_flat != 0, xp.abs(y0_flat), 1.0)
         elif x_scale != "jac":
             raise ValueError(f"unknown x_scale {x_scale!r}; expected None, 'y0', 'jac' or an array")
     else:
-        x_scale = jnp.broadcast_to(jnp.asarray(x_scale, float), (p,))
+        x_scale = _host(x_scale)
+        x_scale = (jnp if isinstance(x_scale, jax.core.Tracer) else np).broadcast_to(x_scale, (p,))
     # strongly typed float64 scalars: a weak-typed NaN would be another compile
-    nan = jnp.asarray(np.nan, dtype=jnp.float64)
-    staged = None if ids is None else (jnp.asarray(ids), jnp.asarray(cs))
+    nan = np.asarray(np.nan, dtype=np.float64)
     return _solve_core(
         fn,
         y0_flat,
         args,
-        None if weights is None else jnp.asarray(weights, dtype=float),
-        staged,
-        nan if scale is None else jnp.asarray(scale, dtype=jnp.float64),
-        nan if sigma is None else jnp.asarray(sigma, dtype=jnp.float64),
+        None if weights is None else _host(weights),
+        None if ids is None else (ids, cs),
+        nan if scale is None else _host(scale),
+        nan if sigma is None else _host(sigma),
         loss if callable(loss) else None,
         solver,
         x_scale,
     )
+
+
+def _host(x):
+    """`x` as float64: NumPy where it is a value (the solve takes NumPy as it takes
+    JAX arrays; an eager `jnp.asarray` compiles a program per shape), JAX where it is
+    traced (the solve inside `vmap`, `jacfwd` or another jit)."""
+    if isinstance(x, jax.core.Tracer):
+        return jnp.asarray(x, dtype=jnp.float64)
+    return np.asarray(x, dtype=np.float64)
 
 
 def _lazy_filter_jit(fn):

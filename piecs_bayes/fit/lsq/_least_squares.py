@@ -31,10 +31,17 @@ from ._result import LsqResult, param_names, result_from_arrays
 from ._types import Status
 
 
+def _traced(x) -> bool:
+    return isinstance(x, jax.core.Tracer)
+
+
 def _as_float_tree(y0):
+    """`y0`'s leaves as float arrays: NumPy for values (an eager `jnp.asarray` compiles a
+    program per shape), JAX for tracers."""
+
     def leaf(x):
-        a = jnp.asarray(x)
-        if not jnp.issubdtype(a.dtype, jnp.inexact):
+        a = jnp.asarray(x) if _traced(x) else np.asarray(x)
+        if not np.issubdtype(a.dtype, np.inexact):
             a = a.astype(float)
         return a
 
@@ -123,7 +130,7 @@ def least_squares(
     arr = jax.tree_util.tree_map(np.asarray, arr)
     res = result_from_arrays(
         arr._asdict(),
-        params=jax.tree_util.tree_map(np.asarray, unravel(jnp.asarray(arr.params_flat))),
+        params=jax.tree_util.tree_map(np.asarray, unravel(np.asarray(arr.params_flat))),
         loss=(loss if isinstance(loss, str) else getattr(loss, "__name__", "custom")),
         robust=not is_linear(loss),
         names=param_names(y0),
@@ -150,13 +157,15 @@ def _check_settings(loss, scale, sigma) -> None:
 def _checked_weights(weights, n: int):
     """`weights` as a `(n,)` array (ones when `None`: one compiled solve either way)."""
     if weights is None:
-        return jnp.ones(n)
+        return np.ones(n)
+    if _traced(weights):
+        return jnp.asarray(weights, dtype=float)
     w = np.asarray(weights, dtype=float)
     if w.shape != (n,):
         raise InputError(f"weights must have shape ({n},) like the residuals, got {w.shape}")
     if not np.all(np.isfinite(w)) or np.any(w < 0):
         raise InputError("weights must be finite and non-negative")
-    return jnp.asarray(w)
+    return w
 
 
 def _checked_x_scale(x_scale, y0, y0_flat):
@@ -165,10 +174,10 @@ def _checked_x_scale(x_scale, y0, y0_flat):
         if jax.tree_util.tree_structure(x_scale) == jax.tree_util.tree_structure(y0):
             x_scale = ravel(x_scale)[0]
         elif np.ndim(x_scale) == 0 or np.shape(x_scale) == y0_flat.shape:
-            x_scale = jnp.asarray(x_scale, float)
+            x_scale = np.asarray(x_scale, float)
         else:
             raise InputError("x_scale must be None, 'y0', 'jac', a scalar or a pytree like y0")
-        if not bool(jnp.all(jnp.isfinite(x_scale) & (x_scale > 0))):
+        if not bool(np.all(np.isfinite(x_scale) & (np.asarray(x_scale) > 0))):
             raise InputError("x_scale must be positive and finite")
     elif isinstance(x_scale, str) and x_scale not in ("y0", "jac"):
         raise InputError(f"unknown x_scale {x_scale!r}; expected None, 'y0', 'jac' or an array")
@@ -184,17 +193,19 @@ class _Unravel:
     shapes: tuple[tuple[int, ...], ...]
 
     def __call__(self, flat):
+        xp = np if isinstance(flat, np.ndarray) else jnp  # NumPy in, NumPy out
         leaves, start = [], 0
         for shape in self.shapes:
             size = int(np.prod(shape, dtype=int))
-            leaves.append(jnp.reshape(flat[start : start + size], shape))
+            leaves.append(xp.reshape(flat[start : start + size], shape))
             start += size
         return jax.tree_util.tree_unflatten(self.treedef, leaves)
 
 
 def ravel(tree):
     leaves, treedef = jax.tree_util.tree_flatten(tree)
-    flat = jnp.concatenate([jnp.ravel(jnp.asarray(x, float)) for x in leaves])
+    xp = jnp if any(_traced(x) for x in leaves) else np  # values: NumPy, no program
+    flat = xp.concatenate([xp.ravel(xp.asarray(x, float)) for x in leaves])
     return flat, _Unravel(treedef, tuple(tuple(np.shape(x)) for x in leaves))
 
 

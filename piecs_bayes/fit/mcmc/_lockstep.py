@@ -118,7 +118,7 @@ def _jax_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: str
     """
     vec = jax.vmap(jax.vmap(log_prob, in_axes=(0, None)), in_axes=(0, 0))
     n_e, h = n_parts * k_ens, w // 2
-    rows = jnp.arange(n_e)[:, None]
+    rows = np.arange(n_e)[:, None]  # a constant of the trace
 
     def lp_fn(q, args):
         out = vec(q.reshape(n_parts, k_ens * h, ndim), args).reshape(n_e, h)
@@ -188,18 +188,23 @@ def _kept_chain(log_prob, n_parts: int, k_ens: int, w: int, ndim: int, moves: st
                       thin, _BLOCK, compiler_options=_config.LONG_RUNNING)  # fmt: skip
 
 
+def threefry_key(seed: int):
+    """`jax.random.PRNGKey(seed)` made in NumPy where JAX's generator is the default
+    threefry (the same two words: high and low 32 bits of the seed), without the two
+    programs JAX compiles for it; JAX's own key otherwise."""
+    if jax.config.jax_default_prng_impl != "threefry2x32":
+        return jax.random.PRNGKey(seed)
+    return np.array([(seed >> 32) & 0xFFFFFFFF, seed & 0xFFFFFFFF], dtype=np.uint32)
+
+
 def _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, n_keep, seed):
     """The JAX backend, compiled (so that the run's wall time excludes compilation):
     a function `run(bar)` that returns the kept walkers `(n_keep, E, W, d)`, their
     log posteriors, the accepted moves per walker and the number of steps run."""
     n_e, w, ndim = coords.shape
     advance = _jax_chain(log_prob, n_parts, k_ens, w, ndim, moves, thin)
-    carry = (
-        jax.random.PRNGKey(seed),
-        jnp.asarray(coords),
-        jnp.asarray(lp),
-        jnp.zeros((n_e, w)),
-    )
+    # transferred, not made by eager JAX operations (each compiled per shape)
+    carry = _config.on_device((threefry_key(seed), coords, lp, np.zeros((n_e, w))))
     kept = _kept_chain(log_prob, n_parts, k_ens, w, ndim, moves, thin)
     n0 = np.asarray(0, np.int64)
     compiled = None if kept is None else kept.compiled(carry, n0, n0, args)
@@ -228,8 +233,8 @@ def _prepare_jax(log_prob, args, coords, lp, n_parts, k_ens, moves, burn, thin, 
         for lo in range(0, n_keep, _BLOCK):
             m = min(_BLOCK, n_keep - lo)
             carry, c, lp_b = advance(carry, 0, m, args)
-            chains.append(np.asarray(c[:m]))
-            lps.append(np.asarray(lp_b[:m]))
+            chains.append(np.asarray(c)[:m])  # sliced in NumPy: no program per slice
+            lps.append(np.asarray(lp_b)[:m])
             if bar is not None:
                 bar.update(min(bar.total, burn + (lo + m) * thin) - bar.n)
         kept_lp = np.concatenate(lps)
@@ -280,7 +285,7 @@ def sample_posteriors(
     x0, names, opts = _checked_run(x0, names, args, options, backend)
     n_parts, ndim = x0.shape
     cov0 = None if cov0 is None else np.asarray(cov0, dtype=float)
-    args = jax.tree_util.tree_map(jnp.asarray, args)
+    args = _config.on_device(args)
     vec = _parts_walkers(log_prob)
     k_ens, w = opts.n_ensembles, opts.nwalkers
     nsteps, burn, thin, moves = opts.nsteps, opts.burn, opts.run_thin, opts.moves
@@ -372,7 +377,7 @@ def _starts(rng, lp_fn, log_prob, x0, args, cov0, k_ens, w, init_scale):
     n_e = n_parts * k_ens
 
     if cov0 is None:  # every part's Hessian in one call
-        hs = np.asarray(neg_hessians(log_prob)(jnp.asarray(x0), args))
+        hs = np.asarray(neg_hessians(log_prob)(x0, args))  # NumPy in: no program to convert it
         roots = [sqrt_psd(cov_from_hessian(h)) * init_scale for h in hs]
     else:
         roots = [sqrt_psd(start_cov(log_prob, x0[p], None, cov0[p], ndim)) * init_scale

@@ -328,7 +328,7 @@ def test_vmap_matches_loop():
     def one(x, y, w):
         return solve_arrays(exp_residuals, y0, (x, y), w)
 
-    batched = jax.vmap(one)(xs, ys, ws)
+    batched = jax.jit(jax.vmap(one))(xs, ys, ws)  # one program, not one per operation
     for i in range(batch):  # the loop: one fit at a time, through the public API
         ref = least_squares(exp_residuals, y0, (xs[i], ys[i]), weights=ws[i])
         assert int(batched.status_code[i]) == ref.status == Status.SUCCESSFUL
@@ -342,7 +342,7 @@ def test_jacfwd_of_fit_is_the_analytic_sensitivity():
     linear model."""
     y = jnp.asarray(_poly_data(10))
     w = jnp.linspace(0.5, 2.0, 20)
-    sens = jax.jacfwd(lambda d: solve_arrays(poly_flat, jnp.zeros(3), d, w).params_flat)(y)
+    sens = jax.jit(jax.jacfwd(lambda d: solve_arrays(poly_flat, jnp.zeros(3), d, w).params_flat))(y)
     xtw = DESIGN.T * np.asarray(w)
     assert np.allclose(sens, np.linalg.solve(xtw @ DESIGN, xtw), rtol=1e-9, atol=1e-12)
 
@@ -361,7 +361,7 @@ def test_jacfwd_nonlinear_matches_finite_differences():
         def fit_arrays(d, loss=loss):
             return solve_arrays(exp_residuals, y0, (jnp.asarray(x), d), loss=loss).params_flat
 
-        sens = np.asarray(jax.jacfwd(fit_arrays)(jnp.asarray(y)))
+        sens = np.asarray(jax.jit(jax.jacfwd(fit_arrays))(y))
         h = 1e-6
         for j in (0, 7, 29):
             e = np.zeros_like(y)
