@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ..errors import AnalysisError, InputError
