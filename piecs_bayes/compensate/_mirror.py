@@ -286,8 +286,9 @@ def adjusted_path(profile: Profile, deviations, *, gain=1.0, max_correction: flo
     # compensated one, at the nominal end points and mid-point of each feature.
     correction = np.array(
         [
-            np.max(np.abs(np.asarray(g.signed_distance(f.point_at(np.array([0.0, 0.5, 1.0]))))))
+            np.max(np.abs(g.drawn_distance(f.drawn_at(np.array([0.0, 0.5, 1.0]))[0], zero)))
             for f, g in zip(profile.features, feats, strict=True)
+            for zero in [np.zeros(g.nparams)]  # NumPy: no JAX operation per feature
         ]
     )
     if max_correction is not None:

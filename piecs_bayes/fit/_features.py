@@ -242,8 +242,8 @@ def fit_feature(
     weights = np.r_[np.ones(n), np.zeros(n_pad - n)]
     res = least_squares(
         fn,
-        jnp.zeros(len(free)),
-        (jnp.asarray(padded), geometry_args(feature), jnp.asarray(float(ball_radius))),
+        np.zeros(len(free)),  # NumPy: the solve takes it as it is (no program to convert)
+        (padded, geometry_args(feature), np.asarray(float(ball_radius))),
         weights=weights,
         loss=options.solve_loss,
         scale=options.scale,

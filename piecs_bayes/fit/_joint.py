@@ -92,10 +92,10 @@ def fit_profile_joint(
     order = np.concatenate([np.flatnonzero(feature_ids == f.id) for f in measured])
     groups = _groups(measured, feature_ids, fixed)
     free_t = tuple(TRANSFORM_PARAMS.index(n) for n in free_transform)
-    base = transform.as_array()
+    base = transform.as_numpy()  # NumPy here (no program per operation), JAX in the trace
     y0 = {
-        "features": {f.id: jnp.zeros(len(free)) for f, _, free in groups},
-        "transform": jnp.zeros(len(free_t)),
+        "features": {f.id: np.zeros(len(free)) for f, _, free in groups},
+        "transform": np.zeros(len(free_t)),
     }
     n_par = sum(len(fr) for _, _, fr in groups) + len(free_t)
     if len(order) <= n_par:
@@ -104,7 +104,7 @@ def fit_profile_joint(
     res = least_squares(
         _joint_residuals(groups, free_t, base),
         y0,
-        (jnp.asarray(pts[order]), jnp.asarray(float(ball_radius))),
+        (pts[order], np.asarray(float(ball_radius))),
         loss=loss,
         scale=options.scale if loss != "linear" else None,
         sigma=ref,  # covariance at a reference sigma, rescaled to the probe sigma below
@@ -115,7 +115,7 @@ def fit_profile_joint(
     t_final = _final_transform(base, free_t, res)
     fits = {}
     for f, sl, free in groups:
-        centres = np.asarray(machine_to_part(jnp.asarray(pts[order][sl]), t_final))
+        centres = machine_to_part(pts[order][sl], t_final)
         fits[f.id] = _feature_fit(
             f, sl, free, res, cov, centres, lines[order][sl], ball_radius, loss, fixed[f.id]
         )
@@ -164,7 +164,8 @@ def _joint_residuals(groups, free_t, base):
 
     def fn(y, args):
         points, rb = args
-        t = base.at[jnp.array(free_t, dtype=int)].add(y["transform"]) if free_t else base
+        t = jnp.asarray(base)
+        t = t.at[np.array(free_t, dtype=int)].add(y["transform"]) if free_t else t
         part_pts = machine_to_part(points, t)
         res = []
         for f, sl, free in groups:
@@ -225,6 +226,8 @@ def _transform_info(free_transform, res, cov) -> dict:
 
 
 def _final_transform(base, free_t, res):
-    if not free_t:
-        return base
-    return base.at[jnp.array(free_t, dtype=int)].add(jnp.asarray(res.params["transform"]))
+    """The fitted transform, a `MachineTransform` (NumPy arithmetic: loading data)."""
+    t = np.array(base, dtype=float)
+    if free_t:
+        t[list(free_t)] += np.asarray(res.params["transform"])
+    return MachineTransform(*map(float, t))

@@ -155,6 +155,12 @@ class Line:
         n_rot = np.array([c * n[0] + s * n[1], -s * n[0] + c * n[1]])
         return (np.asarray(p, dtype=float) - ((p0 + p1) / 2 + e * n)) @ n_rot
 
+    def drawn_normal(self, p):
+        """The nominal line's `outward_normal` at points `p` ``(..., 2)``, in NumPy (as
+        `drawn_at`)."""
+        d = (np.asarray(self.p1, dtype=float) - self.p0) / math.dist(self.p0, self.p1)
+        return np.broadcast_to(self.side * np.array([d[1], -d[0]]), np.shape(p))
+
 
 @dataclass(frozen=True)
 class Arc:
@@ -284,6 +290,12 @@ class Arc:
         dev = np.asarray(dev, dtype=float)
         v = np.asarray(p, dtype=float) - (np.asarray(self.center, dtype=float) + dev[:2])
         return self.sense * (np.linalg.norm(v, axis=-1) - (self.radius + dev[2]))
+
+    def drawn_normal(self, p):
+        """The nominal arc's `outward_normal` at points `p` ``(..., 2)``, in NumPy (as
+        `Line.drawn_at`)."""
+        v = np.asarray(p, dtype=float) - np.asarray(self.center, dtype=float)
+        return self.sense * v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 Feature = Line | Arc

@@ -12,7 +12,6 @@ import re
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
-import jax.numpy as jnp
 import numpy as np
 
 from .. import __version__
@@ -172,7 +171,7 @@ def _feature_table(f, g: float, ts, sds, transform) -> CompensationTable:
     u = np.hypot(u_fit, u_systematic(feat, ts, sds))
     err = val / na  # error along the corrected axis
     q = nominal_points(feat, tuple(float(t) for t in ts))[0]
-    qm = np.asarray(part_to_machine(jnp.asarray(q), transform))
+    qm = np.asarray(part_to_machine(np.asarray(q), transform))  # NumPy in: NumPy path
     what = "radius" if axis == "x" else "position"
     return CompensationTable(
         name=_table_name(axis, feat.id),

@@ -35,7 +35,7 @@ def approach_directions(profile, feature_ids, machine_points, transform, approac
     for f in profile.features:
         rows = ids == f.id
         if rows.any():
-            out[rows] = -np.asarray(f.outward_normal(part[rows]))
+            out[rows] = -f.drawn_normal(part[rows])
     missing = sorted(set(ids) - set(profile.ids))
     if missing:
         raise InputError(f"points of unknown feature {missing[0]!r}", feature=missing[0])

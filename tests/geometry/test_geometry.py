@@ -72,6 +72,10 @@ def test_drawn_points_and_normals_are_the_models(feature):
     np.testing.assert_allclose(q, feature.point_at(jnp.asarray(t)), rtol=0, atol=1e-12)
     np.testing.assert_allclose(n, feature.outward_normal(jnp.asarray(q)), rtol=0, atol=1e-12)
     np.testing.assert_allclose(q[[0, -1]], [feature.p0, feature.p1], rtol=0, atol=1e-12)
+    off = q + 0.2 * n + 0.05 * np.roll(n, 1, axis=-1)  # and off the curve
+    np.testing.assert_allclose(
+        feature.drawn_normal(off), feature.outward_normal(jnp.asarray(off)), rtol=0, atol=1e-12
+    )
     # and the distance of points near it from the feature deviated, as `signed_distance`
     dev = np.array([0.013, -0.002, 0.004][: feature.nparams])
     near = q + np.linspace(-0.3, 0.3, 17)[:, None] * n + 0.1 * np.roll(n, 1, axis=-1)
