@@ -6,6 +6,12 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 export MPLBACKEND := Agg
 export JAX_PLATFORMS := cpu
+# Bytecode is written (under the repository and .venv, ignored by git) so that every
+# process after the first reads it: where PYTHONDONTWRITEBYTECODE is set (this machine
+# kind sets it), every process would compile the package's sources again, and every
+# pytest worker its tests (a warm `piecs-bayes fit` 1.15-1.37 s against 1.03-1.11 s;
+# collecting the tests 11.6 s against 5.4 s, in each of the two workers).
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: demo test test-slow test-all lint lint-imports clean venv conformance
 
@@ -22,6 +28,7 @@ $(STAMP): pyproject.toml constraints.txt
 	    -c constraints.txt -e ".[test,dask,notebooks]"; } || { \
 	  $(BIN)/python -m pip install --quiet --upgrade pip && \
 	  $(BIN)/python -m pip install --quiet -c constraints.txt -e ".[test,dask,notebooks]"; }
+	$(BIN)/python -m compileall -q piecs_bayes >/dev/null  # the editable package's bytecode
 	touch $(STAMP)
 
 demo: $(STAMP)
