@@ -25,7 +25,6 @@ from dataclasses import replace
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ...errors import AnalysisError, InputError
@@ -88,7 +87,7 @@ def sample_posterior(
     if opts.sampler == "lockstep":
         post = sample_posteriors(
             log_prob, x0[None], names=names, cov0=None if cov0 is None else np.asarray(cov0)[None],
-            args=jax.tree_util.tree_map(lambda a: jnp.asarray(a)[None], args),
+            args=jax.tree_util.tree_map(lambda a: np.asarray(a)[None], args),  # no eager op
             options=replace(opts, on_fail="ignore"), backend="jax",
         )[0]  # fmt: skip
     else:
