@@ -132,8 +132,7 @@ class Line:
         t = np.asarray(t, dtype=float)[..., None]
         p0, p1 = np.asarray(self.p0, dtype=float), np.asarray(self.p1, dtype=float)
         q = p0 + t * (p1 - p0)
-        d = (p1 - p0) / math.dist(self.p0, self.p1)
-        n = self.side * np.array([d[1], -d[0]])
+        n = self._nominal_normal()
         if dev is None:
             return q, np.broadcast_to(n, q.shape)
         dev = np.asarray(dev, dtype=float)
@@ -148,8 +147,7 @@ class Line:
         """`signed_distance` of points `p` from the line deviated by `dev`, in NumPy
         (as `drawn_at`)."""
         p0, p1 = np.asarray(self.p0, dtype=float), np.asarray(self.p1, dtype=float)
-        d = (p1 - p0) / math.dist(self.p0, self.p1)
-        n = self.side * np.array([d[1], -d[0]])
+        n = self._nominal_normal()
         e, theta = np.asarray(dev, dtype=float)
         c, s = math.cos(theta), math.sin(theta)
         n_rot = np.array([c * n[0] + s * n[1], -s * n[0] + c * n[1]])
@@ -158,8 +156,12 @@ class Line:
     def drawn_normal(self, p):
         """The nominal line's `outward_normal` at points `p` ``(..., 2)``, in NumPy (as
         `drawn_at`)."""
+        return np.broadcast_to(self._nominal_normal(), np.shape(p))
+
+    def _nominal_normal(self) -> np.ndarray:
+        """The nominal outward normal in NumPy (the `drawn_*` methods')."""
         d = (np.asarray(self.p1, dtype=float) - self.p0) / math.dist(self.p0, self.p1)
-        return np.broadcast_to(self.side * np.array([d[1], -d[0]]), np.shape(p))
+        return self.side * np.array([d[1], -d[0]])
 
 
 @dataclass(frozen=True)
