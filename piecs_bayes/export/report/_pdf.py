@@ -85,9 +85,11 @@ def pdf_pages(res, sections, on_figure=None):
     yield from render_pages(flow.pages, footer)
 
 
-#: the report's fonts as Type 3 (matplotlib draws the glyphs used), each with its
-#: ToUnicode map, so that its text is searched and extracted as with TrueType (Type
-#: 42): fontTools subsetting seven TrueType fonts took 1.3-1.8 s of a 9 s report
+#: the report's TrueType fonts as Type 3 (matplotlib draws the glyphs used), each with
+#: its ToUnicode map, so that its text is searched and extracted as with TrueType (Type
+#: 42): fontTools subsetting seven TrueType fonts took 1.3-1.8 s of a 9 s report. Most
+#: lines are in the standard fonts instead (`_pdf_flow._CoreFonts`); the figures' text
+#: is in their images
 REPORT_PDF_RC = {"pdf.fonttype": 3}
 
 

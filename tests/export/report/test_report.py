@@ -167,6 +167,31 @@ def test_html_is_self_contained_with_every_section_and_figure(demo_report, demo_
 MAX_PAGES = 13
 
 
+def test_pdf_text_is_in_the_standard_fonts_where_they_show_it(demo_report):
+    """Lines the PDF's standard fonts can show (WinAnsi: µ, Ø, ±, °) are written in
+    Helvetica and Courier, not embedded, one string per line; the few others (τ, Δ, σ)
+    in the embedded DejaVu; the text extracts as written either way."""
+    from matplotlib import rcParams
+
+    from piecs_bayes.export.report._pdf_flow import _cp1252
+
+    _, pdf = demo_report
+    reader = PdfReader(io.BytesIO(pdf))
+    fonts = {}
+    for page in reader.pages:
+        for font in page["/Resources"]["/Font"].values():
+            font = font.get_object()
+            fonts[str(font["/BaseFont"]).split("+")[-1]] = "/FontDescriptor" in font
+    assert {"/Helvetica", "/Helvetica-Bold", "/Helvetica-Oblique"} <= set(fonts)
+    assert not any(fonts[f] for f in ("/Helvetica", "/Helvetica-Bold", "/Helvetica-Oblique"))
+    assert "DejaVuSans" in fonts and fonts["DejaVuSans"]  # embedded, for τ and the like
+    text = "\n".join(page.extract_text() for page in reader.pages)
+    for shown in ("Ø ±20", "µm", "τ: autocorrelation time"):
+        assert shown in text, shown
+    assert _cp1252("Ø24.000 ± 6.8 µm, 30°") and not _cp1252("τ") and not _cp1252("σ = 1.5")
+    assert rcParams["pdf.use14corefonts"] is False  # set per line while drawing, restored
+
+
 def test_pdf_has_the_expected_pages(demo_report, demo_results):
     _, pdf = demo_report
     assert pdf[:5] == b"%PDF-"
