@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -46,6 +47,35 @@ def test_float64_is_on_after_importing_any_subpackage(sub):
         "assert jnp.zeros(1).dtype == jnp.float64, jnp.zeros(1).dtype\n"
     )
     assert out.returncode == 0, out.stderr
+
+
+def test_programs_run_in_the_calling_thread_unless_the_user_says_otherwise():
+    """`_config` turns JAX's asynchronous CPU dispatch off (a small call's handoff to
+    JAX's thread cost 4x the call); a user's JAX_CPU_ENABLE_ASYNC_DISPATCH is kept. The
+    same log posterior gives the same numbers both ways (the same program)."""
+    code = (
+        "import numpy as np\n"
+        "import piecs_bayes._config, jax, jax.numpy as jnp\n"
+        "from piecs_bayes.fit.mcmc import gaussian_loglik\n"
+        "f = jax.jit(jax.vmap(lambda t, y: gaussian_loglik(y - t[0] - t[1] * jnp.arange(5.0),"
+        " jnp.exp(t[2])), in_axes=(0, None)))\n"
+        "t = np.array([[0.1, 2.0, -1.0], [0.0, 1.9, -0.5]]); y = 2.0 * np.arange(5.0) + 0.05\n"
+        "print(jax.config.read('jax_cpu_enable_async_dispatch'), *np.asarray(f(t, y)).tolist())\n"
+    )
+    runs = {}
+    for env in ({}, {"JAX_CPU_ENABLE_ASYNC_DISPATCH": "1"}):
+        out = _python(code, **env)
+        assert out.returncode == 0, out.stderr
+        flag, *values = out.stdout.split()
+        runs[flag] = np.array([float(v) for v in values])
+    assert set(runs) == {"False", "True"}
+    sigma = np.exp([-1.0, -0.5])
+    resid = 2.0 * np.arange(5.0) + 0.05 - np.array([[0.1 + 2.0 * i for i in range(5)],
+                                                    [1.9 * i for i in range(5)]])  # fmt: skip
+    want = np.sum(-0.5 * (resid / sigma[:, None]) ** 2 - np.log(sigma[:, None])
+                  - 0.5 * np.log(2 * np.pi), axis=1)  # fmt: skip
+    np.testing.assert_allclose(runs["False"], want, rtol=1e-13)
+    np.testing.assert_allclose(runs["True"], runs["False"], rtol=1e-15)
 
 
 def test_the_drawing_helper_imports_no_jax():
