@@ -34,22 +34,29 @@ $(STAMP): pyproject.toml constraints.txt
 demo: $(STAMP)
 	$(BIN)/piecs-bayes demo data/demo/study.toml --out reports/demo
 
-# Two workers on two cores, each with one BLAS thread: OpenBLAS's own threads spin
+# One worker per usable core, each with one BLAS thread: OpenBLAS's own threads spin
 # while they wait, and two workers' worth of them on two cores cost a quarter of the
 # heaviest tests' time (72 s against 54 s for the coverage, batch and feedback tests
-# on this 2-core kind of machine). Work stealing: a worker that runs dry takes tests
-# queued on the other, so a long test late in one queue leaves no core idle at the
-# end (300 s of pytest against 322-336 s with the default `load`)
+# on this 2-core kind of machine). The suite is work for the processor (compiling and
+# running programs: 1.93 of 2 cores busy through a cold run), so it shortens with the
+# cores; a worker peaks at 2.6 GiB, so no more workers than memory holds at 3 GiB
+# each. `make test WORKERS=N` chooses. Work stealing: a worker that runs dry takes
+# tests queued on another, so a long test late in one queue leaves no core idle at
+# the end (300 s of pytest against 322-336 s with the default `load`)
+WORKERS ?= $(shell $(PYTHON) -c 'import os; \
+  cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(); \
+  mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"); \
+  print(max(1, min(cores or 1, mem // (3 << 30))))' 2>/dev/null || echo 2)
 # Two tiers. `make test`: every behaviour, the statistical checks at sizes whose power
 # each test states (a 300-part coverage check, its window 3 binomial sds). `make
 # test-all` adds the full-power tier: the tests marked slow (the 1,000-part coverage
 # checks, the notebooks executed end to end), then the golden and regeneration tests
 # again under XLA compiling for other instruction sets (.ci/isa-reruns).
 test: $(STAMP)
-	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 --dist worksteal -m "not slow"
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n $(WORKERS) --dist worksteal -m "not slow"
 
 test-slow: $(STAMP)
-	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 --dist worksteal -m slow
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n $(WORKERS) --dist worksteal -m slow
 	bash .ci/isa-reruns
 
 test-all: test test-slow
