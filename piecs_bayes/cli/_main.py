@@ -8,6 +8,7 @@ import gc
 import os
 import signal
 import sys
+import time
 
 from ..errors import AnalysisError, InputError
 from . import _decide, _feedback, _fit, _gauge_study, _gcode, _init, _plan, _probe_cal, _report
@@ -59,12 +60,32 @@ def _swallowed_at(frame) -> bool:
     return False
 
 
-def _stop(exc_type, frame):
+def _importing_at(frame) -> bool:
+    """Whether `frame` runs inside an import (a module's top-level code, an extension's
+    initialisation): an exception raised there can come out as another error (NumPy's
+    extension turns it into an ImportError and prints its traceback, a class being
+    made into a RuntimeError from `__set_name__`) and leaves the module's file open."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib._bootstrap"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+#: seconds a stop waits at most for an import to end (one that hangs still stops)
+_IMPORT_WAIT = 5.0
+
+
+def _stop(exc_type, frame, since: float | None = None):
     """Raise `exc_type` where the program is, or, when that code would swallow it (a
     signal handled inside a GC callback after a long compiled call: the sampler's
-    loop), 50 ms later from a SIGALRM, so that the job still stops and unwinds."""
-    if _swallowed_at(frame):
-        signal.signal(signal.SIGALRM, lambda s, f: _stop(exc_type, f))
+    loop) or change it (inside an import: a Ctrl-C while `fit` imports JAX), 50 ms
+    later from a SIGALRM, again until it can be raised, so that the job still stops
+    and unwinds."""
+    since = time.monotonic() if since is None else since
+    waiting = _importing_at(frame) and time.monotonic() - since < _IMPORT_WAIT
+    if _swallowed_at(frame) or waiting:
+        signal.signal(signal.SIGALRM, lambda s, f: _stop(exc_type, f, since))
         signal.setitimer(signal.ITIMER_REAL, 0.05)
         return
     raise exc_type()
@@ -175,6 +196,10 @@ def _run(argv, *, restore: bool) -> int:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("default")  # shown once each, as one line; never fatal
+            # but not the interpreter's note of a file left open, hidden by Python's own
+            # defaults: never about the user's files (a Ctrl-C inside an import leaves
+            # the module's .pyc open, and its note came before the one line of 130)
+            warnings.simplefilter("ignore", ResourceWarning)
             warnings.showwarning = _show_warning
             return int(args.func(args, console) or 0)
     except (InputError, AnalysisError) as exc:
