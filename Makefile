@@ -13,7 +13,7 @@ export JAX_PLATFORMS := cpu
 # collecting the tests 11.6 s against 5.4 s, in each of the two workers).
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: demo test test-slow test-all lint lint-imports clean venv conformance
+.PHONY: demo test test-slow test-all lint lint-imports clean venv conformance workers
 
 venv: $(STAMP)
 
@@ -60,6 +60,11 @@ test-slow: $(STAMP)
 	bash .ci/isa-reruns
 
 test-all: test test-slow
+
+# The worker count the test tiers use here (benchmarks/bench_first_contact.py runs the
+# suite with it).
+workers:
+	@echo $(WORKERS)
 
 # Peer agreement with LinuxCNC's rs274 (Debian package linuxcnc-uspace): installs
 # it when missing, then runs the tests marked rs274 (they fail here if it is absent).

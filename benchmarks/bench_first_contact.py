@@ -7,7 +7,8 @@ In one run, with `XDG_CACHE_HOME` a new empty folder (no JAX compilation cache, 
 persisted traces; what a new machine has), each against its target:
 
 - the suite's tiers: `make test` (every behaviour) and the slow tier (`pytest -m
-  slow`: the full-power statistical checks, the notebooks executed), wall time and
+  slow`: the full-power statistical checks, the notebooks executed) with the workers
+  `make test` uses (one per usable core: `make workers`), wall time and
   the executables JAX built and XLA compiled (the line `tests/conftest.py` prints);
 - `piecs-bayes demo` on the demo study cold (first run: it compiles) and warm, and the
   compiled executables the cold run left in the cache;
@@ -81,6 +82,13 @@ def _timed(cmd, env, cwd=ROOT) -> tuple[float, str]:
     return wall, proc.stdout + proc.stderr
 
 
+def _workers() -> str:
+    """The pytest workers `make test` uses on this machine (`make workers`): one per
+    usable core, as many as memory holds."""
+    done = subprocess.run(["make", "-s", "workers"], cwd=ROOT, capture_output=True, text=True)
+    return done.stdout.strip() if done.returncode == 0 and done.stdout.strip() else "2"
+
+
 def _compilations(output: str) -> str:
     m = _JAX_LINE.search(output)
     return f"{m.group(1)} built, {m.group(2)} by XLA" if m else "-"
@@ -110,7 +118,7 @@ def main() -> None:
     try:
         if not args.no_suite:
             cache = work / "suite-cache"
-            pytest = [str(PY), "-m", "pytest", "-q", "-n", "2", "--dist", "worksteal",
+            pytest = [str(PY), "-m", "pytest", "-q", "-n", _workers(), "--dist", "worksteal",
                       "-p", "no:cacheprovider"]  # fmt: skip
             wall, out = _timed([*pytest, "-m", "not slow"], _env(cache))
             row("make test", wall, _compilations(out))
